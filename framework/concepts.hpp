@@ -1,0 +1,88 @@
+#pragma once
+/// \file concepts.hpp
+/// The four policy kinds. Each is documented as associated types, valid expressions and
+/// semantics (Boost.Odeint style). Conformance is checked with `static_assert` right after
+/// each implementation.
+#include <Eigen/Core>
+
+#include <concepts>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "framework/block_csr.hpp"
+#include "framework/state.hpp"
+#include "framework/status.hpp"
+
+namespace weft {
+
+struct Scene;  // framework/scene.hpp
+struct StepProblem;
+
+/// Which Hessian an energy returns.
+enum class HessianMode {
+  exact,      ///< the true Hessian (indefinite in general: compressed membrane edges, bent hinges)
+  projected,  ///< every element's Hessian projected to positive semi-definite
+};
+inline constexpr std::array<std::string_view, 2> hessian_mode_names = {"exact", "projected"};
+
+/// Named terms of an energy, for statistics: (name, value in J).
+using EnergyTerms = std::vector<std::pair<std::string, double>>;
+
+/// Every policy: a `Params` aggregate with defaults and a `name`.
+template <class P>
+concept Component = requires {
+  typename P::Params;
+  { P::name } -> std::convertible_to<std::string_view>;
+} && std::default_initializable<typename P::Params>;
+
+/// Potential energy V(x) summed over elements, with exact gradient and Hessian.
+///   construction: `M(const Scene&, const M::Params&)`; throws ConfigError on bad input.
+template <class M>
+concept EnergyModel = Component<M> && std::constructible_from<M, const Scene&, const typename M::Params&> &&
+    requires(M& m, const M& cm, const State& s, Eigen::VectorXd& g, ElementBuffer& buf, AssemblyPlan& plan,
+             HessianMode mode, EnergyTerms& terms) {
+      m.declare(plan);                         // register element stencils, once per topology
+      { cm.energy(s) } -> std::same_as<double>;  // V(x) [J]
+      cm.add_gradient(s, g);                   // g += dV/dx; never resizes
+      cm.add_hessian(s, buf, mode);            // writes (overwrites) the model's element blocks
+      cm.energy_terms(s, terms);               // appends one (name, value) per term
+      { cm.admissible(s) } -> std::same_as<bool>;  // false: the state is outside the model's domain
+    };
+
+/// Contact handling within and after the implicit solve.
+///   construction: `C(const Scene&, const C::Params&)`.
+///   `provides_potential`: contact acts through potential terms inside the solve (so an
+///   integrator that minimises a potential may use it).
+template <class C>
+concept ContactStrategy = Component<C> && std::constructible_from<C, const Scene&, const typename C::Params&> &&
+    requires(C& c, const C& cc, const State& s, State& out, Eigen::VectorXd& g, ElementBuffer& buf,
+             AssemblyPlan& plan, double dt) {
+      { C::provides_potential } -> std::convertible_to<bool>;
+      c.declare(plan);                                       // stencils of potential terms (may be none)
+      { c.begin_step(s, dt) } -> std::same_as<ContactReport>;  // detection; caches the active set
+      { cc.energy(s) } -> std::same_as<double>;              // potential terms of the active set
+      cc.add_gradient(s, g);
+      cc.add_hessian(s, buf);
+      { c.end_step(out, dt) } -> std::same_as<ContactReport>;  // post-solve response (impulses, ...)
+    };
+
+/// Solves A x = b for the Newton systems. Eigen-like life cycle.
+template <class L>
+concept LinearSolver = Component<L> && std::constructible_from<L, const typename L::Params&> &&
+    requires(L& l, const BlockCsr& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+      { l.analyze_pattern(A) } -> std::same_as<Status>;  // once per pattern
+      { l.factorize(A) } -> std::same_as<Status>;        // new values, same pattern
+      { l.solve(b, x) } -> std::same_as<LinearReport>;   // x holds the initial guess on entry
+    };
+
+/// Advances a `StepProblem` by one time step.
+///   construction: `I(const I::Params&)`.
+template <class I, class E, class C, class L>
+concept Integrator = Component<I> && std::constructible_from<I, const typename I::Params&> &&
+    requires(I& i, const E& e, C& c, L& l, StepProblem& p) {
+      { i.step(e, c, l, p) } -> std::same_as<StepReport>;
+    };
+
+}  // namespace weft

@@ -1,0 +1,259 @@
+#pragma once
+/// \file scene.hpp
+/// A scene: what is simulated (cloth meshes and their materials, pins and scripted
+/// motion, obstacles, gravity, damping), for how long, and what is written. Loaded from
+/// JSON (see docs/scene-reference.md, generated from the `visit` functions below) and
+/// validated completely before any work starts. All values are SI inside weft.
+#include <Eigen/Core>
+
+#include <array>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "framework/params.hpp"
+#include "framework/params_json.hpp"
+#include "framework/state.hpp"
+#include "framework/triangle_mesh.hpp"
+
+namespace weft {
+
+/// Isotropic thin-shell material (issue 3 adds orthotropic constants).
+struct ShellMaterial {
+  double density = 0.15;           ///< [kg/m^2] mass per rest area
+  double youngs_modulus = 2e7;     ///< [Pa]
+  double poisson_ratio = 0.3;      ///< [-] 2D plane-stress bound: in (-1, 1)
+  double thickness = 3e-4;         ///< [m]
+  std::optional<double> bending_stiffness;  ///< [J] k; default Y h^3 / (24 (1 - nu^2))
+
+  /// k = Y h^3 / (24 (1 - nu^2)) unless given explicitly (spec 01 Eq. 5.11).
+  double bending_k() const {
+    return bending_stiffness ? *bending_stiffness
+                             : youngs_modulus * thickness * thickness * thickness / (24.0 * (1.0 - poisson_ratio * poisson_ratio));
+  }
+  template <class V>
+  void visit(V& v) {
+    v.field("density", density, {Unit::area_density, Range::gt(0), "mass per rest area"});
+    v.field("youngs_modulus", youngs_modulus, {Unit::pressure, Range::gt(0), "Young's modulus of the sheet material"});
+    v.field("poisson_ratio", poisson_ratio, {Unit::none, Range::open(-1, 1), "Poisson ratio (2D plane stress: -1 < nu < 1)"});
+    v.field("thickness", thickness, {Unit::length, Range::gt(0), "shell thickness h"});
+    v.field("bending_stiffness", bending_stiffness,
+            {Unit::energy, Range::ge(0), "hinge bending stiffness k; default Y h^3 / (24 (1 - nu^2))"});
+  }
+};
+
+/// Scripted rigid motion, active over [start, end]:
+/// x(t) = center + v (t' - start) + R(omega (t' - start)) (x0 - center), t' = clamp(t, start, end).
+struct Motion {
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();          ///< [m/s]
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< [rad/s] about `center`
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();            ///< [m] rotation centre at `start`
+  double start = 0;                                            ///< [s]
+  double end = std::numeric_limits<double>::infinity();       ///< [s]
+
+  bool is_static() const { return velocity.isZero() && angular_velocity.isZero(); }
+  /// Position at time t of the point that was at x0 at time `start`.
+  Eigen::Vector3d apply(const Eigen::Vector3d& x0, double t) const;
+  template <class V>
+  void visit(V& v) {
+    v.field("velocity", velocity, {Unit::velocity, Range::any(), "linear velocity"});
+    v.field("angular_velocity", angular_velocity, {Unit::angular_velocity, Range::any(), "angular velocity (axis * rate)"});
+    v.field("center", center, {Unit::length, Range::any(), "centre of rotation at `start`"});
+    v.field("start", start, {Unit::time, Range::ge(0), "start of the motion"});
+    v.field("end", end, {Unit::time, Range::ge(0), "end of the motion (the body stops there)"});
+  }
+};
+
+/// How a cloth mesh is made.
+enum class MeshSource { rectangle, l_shape, file };
+inline constexpr std::array<std::string_view, 3> mesh_source_names = {"rectangle", "l_shape", "file"};
+enum class Tessellation { regular, irregular };
+inline constexpr std::array<std::string_view, 2> tessellation_names = {"regular", "irregular"};
+/// The plane a generated sheet lies in (the first two axes span it).
+enum class SheetPlane { xy, xz, yz };
+inline constexpr std::array<std::string_view, 3> sheet_plane_names = {"xy", "xz", "yz"};
+
+struct MeshSpec {
+  MeshSource source = MeshSource::rectangle;
+  // generators
+  Eigen::Vector2d size{1.0, 1.0};          ///< [m] extent along the plane's two axes
+  std::array<int, 2> resolution{21, 21};   ///< vertices along each axis
+  Tessellation tessellation = Tessellation::regular;
+  int seed = 1;                            ///< irregular tessellation
+  SheetPlane plane = SheetPlane::xy;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< [m] centre of the generated sheet
+  // file
+  std::string file;                        ///< OBJ path, relative to the scene file
+  double scale = 1.0;                      ///< applied to file vertices (e.g. 0.01 for cm)
+  Eigen::Vector3d translate = Eigen::Vector3d::Zero();  ///< [m] applied after scaling
+
+  template <class V>
+  void visit(V& v) {
+    v.choice("source", source, mesh_source_names, "generator or OBJ file");
+    v.field("size", size, {Unit::length, Range::gt(0), "rectangle / L-shape extent (the L removes one quadrant)"});
+    v.field("resolution", resolution, {Unit::none, Range::closed(2, 5000), "vertices per side"});
+    v.choice("tessellation", tessellation, tessellation_names, "regular grid, or jittered vertices with random diagonals");
+    v.field("seed", seed, {Unit::none, Range::ge(0), "random seed of the irregular tessellation"});
+    v.choice("plane", plane, sheet_plane_names, "plane of a generated sheet");
+    v.field("center", center, {Unit::length, Range::any(), "centre of a generated sheet"});
+    v.field("file", file, {Unit::none, Range::any(), "OBJ file (source = file), relative to the scene file"});
+    v.field("scale", scale, {Unit::none, Range::gt(0), "scale applied to OBJ vertices"});
+    v.field("translate", translate, {Unit::length, Range::any(), "translation applied to OBJ vertices after scaling"});
+  }
+};
+
+/// A set of vertices that do not move freely: selected by id and/or by a box around the
+/// rest positions. Static unless a motion is given.
+struct PinSpec {
+  std::vector<int> vertices;                 ///< vertex ids within the cloth
+  Eigen::Vector3d box_min = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d box_max = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+  Motion motion;
+  bool has_box() const { return (box_min.array() <= box_max.array()).all(); }
+  template <class V>
+  void visit(V& v) {
+    v.field("vertices", vertices, {Unit::none, Range::ge(0), "vertex ids (0-based, within this cloth)"});
+    v.field("box_min", box_min, {Unit::length, Range::any(), "select rest positions inside [box_min, box_max]"});
+    v.field("box_max", box_max, {Unit::length, Range::any(), "upper corner of the selection box"});
+    v.section("motion", motion);
+  }
+};
+
+struct ClothSpec {
+  std::string name = "cloth";
+  MeshSpec mesh;
+  ShellMaterial material;
+  std::vector<PinSpec> pins;
+  Eigen::Vector3d initial_velocity = Eigen::Vector3d::Zero();  ///< [m/s]
+  template <class V>
+  void visit(V& v) {
+    v.field("name", name, {Unit::none, Range::any(), "name used in output files"});
+    v.section("mesh", mesh);
+    v.section("material", material);
+    v.list("pins", pins, "pinned or scripted vertex sets");
+    v.field("initial_velocity", initial_velocity, {Unit::velocity, Range::any(), "initial velocity of every vertex"});
+  }
+};
+
+enum class ObstacleShape { sphere, box, plane };
+inline constexpr std::array<std::string_view, 3> obstacle_shape_names = {"sphere", "box", "plane"};
+
+/// An analytic, scripted obstacle.
+struct ObstacleSpec {
+  ObstacleShape shape = ObstacleShape::sphere;
+  std::string name = "obstacle";
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();       ///< [m] sphere/box centre, a point on a plane
+  double radius = 0.5;                                    ///< [m] sphere
+  Eigen::Vector3d half_extents{0.5, 0.5, 0.5};            ///< [m] box
+  Eigen::Vector3d normal{0, 0, 1};                        ///< plane normal (normalised on load)
+  double friction = 0.0;                                  ///< Coulomb coefficient
+  Motion motion;
+  template <class V>
+  void visit(V& v) {
+    v.choice("shape", shape, obstacle_shape_names, "obstacle shape", true);
+    v.field("name", name, {Unit::none, Range::any(), "name used in output files"});
+    v.field("center", center, {Unit::length, Range::any(), "sphere/box centre, or a point on the plane"});
+    v.field("radius", radius, {Unit::length, Range::gt(0), "sphere radius"});
+    v.field("half_extents", half_extents, {Unit::length, Range::gt(0), "box half extents"});
+    v.field("normal", normal, {Unit::none, Range::any(), "plane normal (nonzero; normalised)"});
+    v.field("friction", friction, {Unit::none, Range::ge(0), "Coulomb friction coefficient"});
+    v.section("motion", motion);
+  }
+};
+
+struct TimeSpec {
+  double dt = 1.0 / 240.0;       ///< [s]
+  double duration = 2.0;         ///< [s]
+  double frame_rate = 24.0;      ///< [1/s] frames written per simulated second
+  int steps_per_frame() const;
+  int num_frames() const;
+  template <class V>
+  void visit(V& v) {
+    v.field("dt", dt, {Unit::time, Range::open_closed(0, 1), "time step; must divide the frame interval"});
+    v.field("duration", duration, {Unit::time, Range::gt(0), "simulated time"});
+    v.field("frame_rate", frame_rate, {Unit::frequency, Range::open_closed(0, 10000), "frames per simulated second"});
+  }
+};
+
+struct DampingSpec {
+  double mass = 0.0;  ///< [1/s] drag -c M v (air damping), treated implicitly
+  template <class V>
+  void visit(V& v) {
+    v.field("mass", mass, {Unit::frequency, Range::ge(0), "mass-proportional damping c (force -c M v)"});
+  }
+};
+
+struct OutputSpec {
+  bool obj = true;      ///< one OBJ per frame
+  bool vtp = true;      ///< one VTK PolyData per frame plus a .pvd series
+  bool stats = true;    ///< per-step statistics as JSON lines
+  int every = 1;        ///< write every n-th frame
+  template <class V>
+  void visit(V& v) {
+    v.field("obj", obj, {Unit::none, Range::any(), "write frames as OBJ"});
+    v.field("vtp", vtp, {Unit::none, Range::any(), "write frames as VTK .vtp with a .pvd series"});
+    v.field("stats", stats, {Unit::none, Range::any(), "write per-step statistics (stats.jsonl)"});
+    v.field("every", every, {Unit::none, Range::ge(1), "write every n-th frame"});
+  }
+};
+
+/// The scene file's own keys (the solver sections are read by the chosen combination).
+struct SceneSpec {
+  std::string combo = "cloth_ip_direct";
+  std::string description;
+  std::vector<ClothSpec> cloths;
+  std::vector<ObstacleSpec> obstacles;
+  Eigen::Vector3d gravity{0, 0, -9.81};
+  TimeSpec time;
+  DampingSpec damping;
+  OutputSpec output;
+  template <class V>
+  void visit(V& v) {
+    v.field("combo", combo, {Unit::none, Range::any(), "pre-built combination of policies (`weft list`)"});
+    v.field("description", description, {Unit::none, Range::any(), "free text"});
+    v.list("cloths", cloths, "cloth sheets", 1);
+    v.list("obstacles", obstacles, "analytic obstacles");
+    v.field("gravity", gravity, {Unit::acceleration, Range::any(), "gravitational acceleration"});
+    v.section("time", time);
+    v.section("damping", damping);
+    v.section("output", output);
+  }
+};
+
+/// A loaded, validated scene: the spec plus everything derived from it.
+struct Scene {
+  SceneSpec spec;
+  std::string path;                 ///< scene file ("" if built in code)
+  Json solver;                      ///< the "energy", "integrator", "contact", "linear" sections
+  TriangleMesh mesh;                ///< all cloths, concatenated
+  std::vector<int> cloth_vertex_offset;  ///< #cloths+1: vertex range of each cloth
+  std::vector<int> cloth_face_offset;    ///< #cloths+1: face range of each cloth
+  std::vector<int> face_cloth;      ///< #F: cloth index of each face (material = cloths[c].material)
+  std::vector<Dof> dof;             ///< #V
+  std::vector<int> vertex_motion;   ///< #V: index into `motions` for scripted vertices, else -1
+  std::vector<Motion> motions;
+
+  const ShellMaterial& face_material(int f) const { return spec.cloths[face_cloth[f]].material; }
+  /// Lumped masses: each triangle gives density * area / 3 to each of its vertices [kg].
+  Eigen::VectorXd lumped_masses() const;
+  /// Initial state (rest positions, initial velocities, masses, dofs).
+  State initial_state() const;
+  /// Prescribed positions of non-free vertices at time t (free entries: current x).
+  void constrained_positions(double t, const State& s, Eigen::VectorXd& target) const;
+};
+
+/// Build a scene from a parsed JSON document. `base_dir` resolves relative mesh paths.
+/// Throws ConfigError listing every problem, each prefixed with `origin` (the file).
+Scene build_scene(const Json& doc, const std::string& base_dir, const std::string& origin);
+
+/// Parse a scene file (comments allowed), apply `key=value` overrides (dotted keys that
+/// mirror the JSON tree), and build it. Throws ConfigError.
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+
+/// Apply one `a.b.c=value` override to a JSON document. The value is parsed as JSON when
+/// possible (numbers, true/false, arrays), else taken as a string. Throws ConfigError for
+/// a malformed override; unknown keys are caught by the strict reader afterwards.
+void apply_override(Json& doc, const std::string& assignment);
+
+}  // namespace weft

@@ -1,0 +1,91 @@
+#pragma once
+/// \file status.hpp
+/// Numerical outcomes and the reports every stage returns. A `StepReport` nests the
+/// Newton, linear and contact reports of one time step; ablations, plots and benchmarks
+/// read these, never log lines.
+#include <array>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "framework/timers.hpp"
+
+namespace weft {
+
+/// Outcome of a numerical stage. Returned, never thrown.
+enum class Status {
+  success,          ///< converged / completed
+  no_convergence,   ///< iteration limit reached before the tolerance
+  numerical_issue,  ///< NaN/Inf, breakdown, failed line search, singular matrix
+  invalid_input,    ///< the stage was called with inconsistent data
+  interrupted,      ///< stopped by a signal between steps
+};
+std::string_view to_string(Status s);
+
+/// One linear solve (or the sum over the solves of a step, see `accumulate`).
+struct LinearReport {
+  Status status = Status::success;
+  int solves = 0;                 ///< number of solves summarised
+  int iterations = 0;             ///< Krylov iterations (0 for direct solvers)
+  double relative_residual = 0;   ///< true ||b - A x|| / ||b|| of the last solve
+  double setup_seconds = 0;       ///< analyze_pattern + factorize
+  double solve_seconds = 0;
+  int negative_pivots = -1;       ///< LDL^T only: count of negative D entries (-1: unknown)
+  std::string message;
+  void accumulate(const LinearReport& r);
+};
+
+/// One Newton iteration of a time step.
+struct NewtonIteration {
+  double merit = 0;                   ///< merit function at the start of the iteration
+  double residual = 0;                ///< ||f||_{M^-1} at the start of the iteration
+  double directional_derivative = 0;  ///< d merit / ds at s = 0 along the direction
+  double step_length = 0;             ///< accepted line-search step s
+  double step_norm = 0;               ///< max-norm of the accepted displacement increment [m]
+  int line_search_evaluations = 0;
+  int linear_iterations = 0;
+};
+
+struct NewtonReport {
+  Status status = Status::success;
+  int iterations = 0;
+  double initial_residual = 0;  ///< ||f(d0)||_{M^-1}
+  double final_residual = 0;
+  double tolerance = 0;         ///< the residual threshold that was used
+  std::string stop_reason;      ///< which criterion stopped the iteration
+  std::vector<NewtonIteration> history;
+  std::string message;
+};
+
+struct ContactReport {
+  Status status = Status::success;
+  int contacts = 0;
+  double detection_seconds = 0;
+  double response_seconds = 0;
+  std::string message;
+};
+
+/// Energies at the end of a step [J]; `terms` follows the energy model's term names.
+struct EnergyReport {
+  double kinetic = 0;
+  double potential = 0;  ///< sum of the terms
+  std::vector<std::pair<std::string, double>> terms;
+};
+
+/// Everything one time step did.
+struct StepReport {
+  int step = 0;        ///< 1-based step index
+  double time = 0;     ///< simulated time at the end of the step [s]
+  double dt = 0;       ///< [s]
+  Status status = Status::success;
+  std::string failed_stage;  ///< the stage that failed ("" on success)
+  std::string message;       ///< why it failed
+  NewtonReport newton;
+  LinearReport linear;       ///< summed over the Newton iterations of the step
+  ContactReport contact;
+  EnergyReport energy;
+  StageTimes times;
+  bool ok() const { return status == Status::success; }
+};
+
+}  // namespace weft
