@@ -1,5 +1,7 @@
 #include "framework/triangle_mesh.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <map>
 #include <numeric>

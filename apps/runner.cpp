@@ -1,0 +1,311 @@
+#include "apps/runner.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <atomic>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <regex>
+
+#include "framework/obj_io.hpp"
+#include "framework/reports.hpp"
+#include "framework/writers.hpp"
+#include "policies/registry.hpp"
+
+namespace weft::app {
+namespace {
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int s) { g_signal.store(s); }
+
+namespace fs = std::filesystem;
+
+// Remove the files a previous run left, so frames of different runs never mix.
+void clear_previous_outputs(const fs::path& dir) {
+  static const std::regex pattern(R"((.+_\d{4,}\.(obj|vtp))|(.+\.pvd)|stats\.jsonl|summary\.json|scene\.json|.+\.tmp)");
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file() && std::regex_match(e.path().filename().string(), pattern)) fs::remove(e.path());
+}
+
+// Triangulated obstacle surface at time t, for output only.
+MeshData obstacle_mesh(const ObstacleSpec& o, double t) {
+  MeshData m;
+  if (o.shape == ObstacleShape::sphere) {
+    const int nu = 24, nv = 12;
+    m.V.resize(nu * (nv - 1) + 2, 3);
+    m.V.row(0) = Eigen::RowVector3d(0, 0, -1);
+    for (int j = 1; j < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
+        m.V.row(1 + (j - 1) * nu + i) = Eigen::RowVector3d(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), -std::cos(th));
+      }
+    m.V.row(m.V.rows() - 1) = Eigen::RowVector3d(0, 0, 1);
+    std::vector<Eigen::Vector3i> f;
+    auto id = [&](int j, int i) { return 1 + (j - 1) * nu + (i % nu); };
+    for (int i = 0; i < nu; ++i) f.emplace_back(0, id(1, i + 1), id(1, i));
+    for (int j = 1; j + 1 < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        f.emplace_back(id(j, i), id(j, i + 1), id(j + 1, i + 1));
+        f.emplace_back(id(j, i), id(j + 1, i + 1), id(j + 1, i));
+      }
+    const int top = static_cast<int>(m.V.rows()) - 1;
+    for (int i = 0; i < nu; ++i) f.emplace_back(top, id(nv - 1, i), id(nv - 1, i + 1));
+    m.F.resize(static_cast<Eigen::Index>(f.size()), 3);
+    for (size_t k = 0; k < f.size(); ++k) m.F.row(static_cast<Eigen::Index>(k)) = f[k].transpose();
+    m.V *= o.radius;
+  } else if (o.shape == ObstacleShape::box) {
+    m.V.resize(8, 3);
+    for (int k = 0; k < 8; ++k)
+      m.V.row(k) = Eigen::RowVector3d((k & 1 ? 1 : -1) * o.half_extents[0], (k & 2 ? 1 : -1) * o.half_extents[1],
+                                      (k & 4 ? 1 : -1) * o.half_extents[2]);
+    m.F.resize(12, 3);
+    m.F << 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5;
+  } else {
+    const Eigen::Vector3d n = o.normal;
+    const Eigen::Vector3d a = n.unitOrthogonal(), b = n.cross(a);
+    const double L = 2.0;
+    m.V.resize(4, 3);
+    m.V.row(0) = (-L * a - L * b).transpose();
+    m.V.row(1) = (L * a - L * b).transpose();
+    m.V.row(2) = (L * a + L * b).transpose();
+    m.V.row(3) = (-L * a + L * b).transpose();
+    m.F.resize(2, 3);
+    m.F << 0, 1, 2, 0, 2, 3;
+  }
+  for (Eigen::Index k = 0; k < m.V.rows(); ++k)
+    m.V.row(k) = o.motion.apply(o.center + Eigen::Vector3d(m.V.row(k)), t).transpose();
+  return m;
+}
+
+class FrameWriter {
+ public:
+  FrameWriter(const Scene& scene, const fs::path& dir) : scene_(scene), dir_(dir) {
+    const auto& spec = scene.spec;
+    for (size_t c = 0; c < spec.cloths.size(); ++c) {
+      const int f0 = scene.cloth_face_offset[c], f1 = scene.cloth_face_offset[c + 1];
+      Eigen::MatrixX3i F = scene.mesh.faces().middleRows(f0, f1 - f0).array() - scene.cloth_vertex_offset[c];
+      faces_.push_back(F);
+      names_.push_back(spec.cloths.size() == 1 ? spec.cloths[c].name : fmt::format("{}{}", spec.cloths[c].name, c));
+    }
+    if (spec.output.vtp) pvd_.emplace((dir_ / "frames.pvd").string());
+  }
+  /// Write frame `k` of the current state; returns the number of files written.
+  int write(int k, const State& s) {
+    int files = 0;
+    const auto& spec = scene_.spec;
+    for (size_t c = 0; c < faces_.size(); ++c) {
+      const int v0 = scene_.cloth_vertex_offset[c], nv = scene_.cloth_vertex_offset[c + 1] - v0;
+      const Eigen::VectorXd x = s.x.segment(3 * v0, 3 * nv), v = s.v.segment(3 * v0, 3 * nv);
+      const std::string base = fmt::format("{}_{:04d}", names_[c], k);
+      if (spec.output.obj) write_obj((dir_ / (base + ".obj")).string(), x, faces_[c], fmt::format("weft frame {} t={}", k, s.t)), ++files;
+      if (spec.output.vtp) {
+        write_vtp((dir_ / (base + ".vtp")).string(), x, faces_[c], &v), ++files;
+        pvd_->add(s.t, base + ".vtp", static_cast<int>(c));
+      }
+    }
+    for (size_t o = 0; o < spec.obstacles.size(); ++o) {
+      const MeshData m = obstacle_mesh(spec.obstacles[o], s.t);
+      Eigen::VectorXd x(3 * m.V.rows());
+      for (Eigen::Index i = 0; i < m.V.rows(); ++i) x.segment<3>(3 * i) = m.V.row(i).transpose();
+      const std::string base = fmt::format("{}{}_{:04d}", spec.obstacles[o].name, o, k);
+      if (spec.output.obj) write_obj((dir_ / (base + ".obj")).string(), x, m.F), ++files;
+      if (spec.output.vtp) {
+        write_vtp((dir_ / (base + ".vtp")).string(), x, m.F), ++files;
+        pvd_->add(s.t, base + ".vtp", static_cast<int>(faces_.size() + o));
+      }
+    }
+    return files;
+  }
+
+ private:
+  const Scene& scene_;
+  fs::path dir_;
+  std::vector<Eigen::MatrixX3i> faces_;
+  std::vector<std::string> names_;
+  std::optional<PvdSeries> pvd_;
+};
+
+class Progress {
+ public:
+  Progress(int total_frames, int mode, bool quiet) : total_(total_frames), quiet_(quiet) {
+    bar_ = mode < 0 ? isatty(STDERR_FILENO) != 0 : mode == 1;
+    start_ = std::chrono::steady_clock::now();
+  }
+  void update(int frame, double t, int steps) {
+    if (quiet_) return;
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const double frac = total_ > 0 ? static_cast<double>(frame) / total_ : 1.0;
+    const double eta = frac > 0 ? wall * (1 - frac) / frac : 0;
+    if (bar_) {
+      const int w = 30, filled = static_cast<int>(frac * w);
+      fmt::print(stderr, "\r[{}{}] {:3.0f}% frame {}/{} t={:.3f}s {:.1f} steps/s ETA {:.0f}s ", std::string(filled, '#'),
+                 std::string(w - filled, ' '), 100 * frac, frame, total_, t, steps / std::max(wall, 1e-9), eta);
+      if (frame == total_) fmt::print(stderr, "\n");
+    } else {
+      const int decile = static_cast<int>(10 * frac);
+      if (decile > last_decile_ || frame == total_) {
+        last_decile_ = decile;
+        fmt::print(stderr, "frame {}/{} t={:.3f}s steps={} wall={:.1f}s\n", frame, total_, t, steps, wall);
+      }
+    }
+  }
+  void finish_line() {
+    if (bar_ && !quiet_) fmt::print(stderr, "\n");
+  }
+
+ private:
+  int total_;
+  bool quiet_, bar_ = false;
+  int last_decile_ = -1;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace
+
+int run_scene(const RunOptions& opt) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  // 1. Validate everything before touching the output directory.
+  std::unique_ptr<AnySimulator> sim;
+  Scene scene_copy;
+  try {
+    Scene scene = load_scene(opt.scene, opt.overrides);
+    sim = make_simulator(scene);
+    scene_copy = std::move(scene);
+  } catch (const ConfigError& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_config;
+  }
+  const Scene& scene = sim->scene();
+  const fs::path dir = opt.out_dir.empty() ? fs::path("out") : fs::path(opt.out_dir);
+  try {
+    fs::create_directories(dir);
+    clear_previous_outputs(dir);
+  } catch (const fs::filesystem_error& e) {
+    fmt::print(stderr, "error: cannot prepare output directory {}: {}\n", dir.string(), e.what());
+    return exit_config;
+  }
+
+  // 2. Effective scene and parameters, for reproduction.
+  std::ifstream in(opt.scene);
+  Json effective = Json::parse(in, nullptr, true, true);
+  for (const auto& o : opt.overrides) apply_override(effective, o);
+  const Json params = sim->params();
+  for (const auto& [k, v] : params.items()) effective[k] = v;
+  write_json_file((dir / "scene.json").string(), effective);
+
+  g_signal.store(0);
+  auto old_int = std::signal(SIGINT, on_signal);
+  auto old_term = std::signal(SIGTERM, on_signal);
+
+  const auto& time = scene.spec.time;
+  const int spf = time.steps_per_frame(), frames = time.num_frames();
+  const int every = scene.spec.output.every;
+  FrameWriter writer(scene, dir);
+  std::optional<StatsWriter> stats;
+  if (scene.spec.output.stats) stats.emplace((dir / "stats.jsonl").string());
+  Progress progress(frames, opt.progress, opt.quiet);
+
+  if (!opt.quiet)
+    spdlog::info("{}: {} vertices, {} faces, {} hinges; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene,
+                 scene.mesh.num_vertices(), scene.mesh.num_faces(), scene.mesh.num_hinges(), sim->combo(), time.dt, spf, frames);
+
+  int files = writer.write(0, sim->state());
+  int frames_written = 1, steps = 0;
+  long newton_total = 0, linear_total = 0;
+  int newton_max = 0;
+  StageTimes stage_total;
+  std::string status = "completed";
+  Json failure;
+  int code = exit_ok;
+  for (int f = 1; f <= frames && code == exit_ok; ++f) {
+    for (int k = 0; k < spf; ++k) {
+      if (const int sig = g_signal.load()) {
+        status = "interrupted";
+        failure = {{"signal", sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : std::to_string(sig)},
+                   {"after_step", steps}, {"time", sim->state().t}};
+        code = 128 + sig;
+        break;
+      }
+      StepReport rep = sim->step();
+      ++steps;
+      newton_total += rep.newton.iterations;
+      newton_max = std::max(newton_max, rep.newton.iterations);
+      linear_total += rep.linear.iterations;
+      {
+        ScopedTimer t(rep.times, Stage::output);
+        if (stats) stats->write(to_json(rep));
+      }
+      stage_total += rep.times;
+      if (!rep.ok()) {
+        status = "failed";
+        failure = {{"step", rep.step}, {"time", rep.time}, {"stage", rep.failed_stage},
+                   {"status", to_string(rep.status)}, {"reason", rep.message}};
+        progress.finish_line();
+        fmt::print(stderr, "error: step {} (t = {} s) failed in stage '{}': {}: {}\n", rep.step, rep.time, rep.failed_stage,
+                   to_string(rep.status), rep.message);
+        code = exit_failed;
+        break;
+      }
+    }
+    if (code != exit_ok) break;
+    if (f % every == 0 || f == frames) {
+      ScopedTimer t(stage_total, Stage::output);
+      files += writer.write(f, sim->state());
+      ++frames_written;
+    }
+    progress.update(f, sim->state().t, steps);
+  }
+  std::signal(SIGINT, old_int);
+  std::signal(SIGTERM, old_term);
+  if (status == "interrupted") {
+    progress.finish_line();
+    fmt::print(stderr, "interrupted by {} after {} steps; output up to t = {} s is intact\n",
+               failure["signal"].get<std::string>(), steps, sim->state().t);
+  }
+
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  const EnergyReport e = sim->energies();
+  Json energies{{"kinetic", e.kinetic}, {"potential", e.potential}};
+  for (const auto& [n, v] : e.terms) energies[n] = v;
+  Json summary{{"status", status},
+               {"scene", opt.scene},
+               {"combo", std::string(sim->combo())},
+               {"vertices", scene.mesh.num_vertices()},
+               {"faces", scene.mesh.num_faces()},
+               {"dt", time.dt},
+               {"steps", steps},
+               {"steps_planned", frames * spf},
+               {"frames_written", frames_written},
+               {"files_written", files},
+               {"simulated_time", sim->state().t},
+               {"wall_seconds", wall},
+               {"seconds_per_step", steps ? stage_total.total() / steps : 0.0},
+               {"newton_iterations", {{"total", newton_total}, {"mean", steps ? double(newton_total) / steps : 0.0}, {"max", newton_max}}},
+               {"linear_iterations", {{"total", linear_total}, {"mean_per_step", steps ? double(linear_total) / steps : 0.0}}},
+               {"stage_seconds", to_json(stage_total)},
+               {"final_energy", energies},
+               {"threads",
+#ifdef _OPENMP
+                omp_get_max_threads()
+#else
+                1
+#endif
+               }};
+  if (!failure.is_null()) summary["failure"] = failure;
+  write_json_file((dir / "summary.json").string(), summary);
+  if (!opt.quiet && code == exit_ok)
+    spdlog::info("done: {} steps in {:.2f} s ({:.2f} ms/step), Newton {:.2f}/step (max {}), output in {}", steps, wall,
+                 1e3 * stage_total.total() / std::max(steps, 1), double(newton_total) / std::max(steps, 1), newton_max, dir.string());
+  return code;
+}
+
+}  // namespace weft::app

@@ -1,0 +1,30 @@
+#pragma once
+/// \file runner.hpp
+/// `weft run`: load and validate a scene, then step it, writing frames, per-step
+/// statistics and a summary. Failures keep everything written so far.
+#include <string>
+#include <vector>
+
+namespace weft::app {
+
+/// Exit codes of the weft command.
+enum ExitCode : int {
+  exit_ok = 0,
+  exit_usage = 1,    ///< bad command line (CLI11)
+  exit_config = 2,   ///< invalid scene, parameter, override or mesh: nothing was written
+  exit_failed = 3,   ///< a step failed (NaN, no convergence): output up to the failure is intact
+  // interrupted by signal s: 128 + s (130 for SIGINT, 143 for SIGTERM)
+};
+
+struct RunOptions {
+  std::string scene;
+  std::string out_dir;               ///< "" = "out"
+  std::vector<std::string> overrides;
+  int progress = -1;                 ///< -1: bar if stderr is a terminal; 0: plain lines; 1: bar
+  bool quiet = false;
+};
+
+/// Runs a scene; returns the exit code. Messages go to stderr.
+int run_scene(const RunOptions& options);
+
+}  // namespace weft::app

@@ -1,0 +1,100 @@
+#include "framework/mesh_generators.hpp"
+
+#include <map>
+#include <random>
+#include <vector>
+
+#include "framework/error.hpp"
+
+namespace weft {
+namespace {
+
+// Grid vertices and faces; `keep(i, j)` decides whether quad (i, j) is present.
+template <class Keep>
+MeshData grid(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation t, int seed, Keep keep) {
+  const int nx = res[0], ny = res[1];
+  const double hx = size[0] / (nx - 1), hy = size[1] / (ny - 1);
+  std::mt19937 rng(static_cast<unsigned>(seed));
+  std::uniform_int_distribution<int> coin(0, 1);
+  std::vector<Eigen::Vector3i> faces;
+  std::vector<char> used(static_cast<size_t>(nx) * ny, 0);
+  auto id = [nx](int i, int j) { return j * nx + i; };
+  for (int j = 0; j + 1 < ny; ++j)
+    for (int i = 0; i + 1 < nx; ++i) {
+      if (!keep(i, j)) continue;
+      const int a = id(i, j), b = id(i + 1, j), c = id(i + 1, j + 1), d = id(i, j + 1);
+      const bool flip = t == Tessellation::irregular && coin(rng);
+      if (!flip) {
+        faces.emplace_back(a, b, c);
+        faces.emplace_back(a, c, d);
+      } else {
+        faces.emplace_back(a, b, d);
+        faces.emplace_back(b, c, d);
+      }
+      used[a] = used[b] = used[c] = used[d] = 1;
+    }
+  // Boundary vertices (on an edge used by one face) are not jittered, so the outline stays exact.
+  std::map<std::pair<int, int>, int> edge_count;
+  for (const auto& f : faces)
+    for (int k = 0; k < 3; ++k) ++edge_count[std::minmax(f[k], f[(k + 1) % 3])];
+  std::vector<char> boundary(used.size(), 0);
+  for (const auto& [e, n] : edge_count)
+    if (n == 1) boundary[e.first] = boundary[e.second] = 1;
+
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  std::vector<int> remap(used.size(), -1);
+  std::vector<Eigen::Vector3d> verts;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int k = id(i, j);
+      // Draw jitter for every grid vertex so the sequence does not depend on the shape.
+      const double du = jitter(rng), dv = jitter(rng);
+      if (!used[k]) continue;
+      Eigen::Vector3d p(-0.5 * size[0] + i * hx, -0.5 * size[1] + j * hy, 0.0);
+      if (t == Tessellation::irregular && !boundary[k]) p += Eigen::Vector3d(du * hx, dv * hy, 0.0);
+      remap[k] = static_cast<int>(verts.size());
+      verts.push_back(p);
+    }
+  MeshData m;
+  m.V.resize(static_cast<Eigen::Index>(verts.size()), 3);
+  for (size_t k = 0; k < verts.size(); ++k) m.V.row(static_cast<Eigen::Index>(k)) = verts[k];
+  m.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t k = 0; k < faces.size(); ++k)
+    for (int c = 0; c < 3; ++c) m.F(static_cast<Eigen::Index>(k), c) = remap[faces[k][c]];
+  return m;
+}
+
+void check(std::array<int, 2> res) {
+  if (res[0] < 2 || res[1] < 2) throw ConfigError(fmt::format("sheet resolution {}x{}: need at least 2x2 vertices", res[0], res[1]));
+}
+
+}  // namespace
+
+MeshData make_rectangle(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation t, int seed) {
+  check(res);
+  return grid(size, res, t, seed, [](int, int) { return true; });
+}
+
+MeshData make_l_shape(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation t, int seed) {
+  check(res);
+  if (res[0] % 2 == 0 || res[1] % 2 == 0 || res[0] < 3 || res[1] < 3)
+    throw ConfigError(fmt::format("L-shaped sheet resolution {}x{}: both must be odd and >= 3 so the cut lies on grid lines",
+                                  res[0], res[1]));
+  const int ci = (res[0] - 1) / 2, cj = (res[1] - 1) / 2;
+  return grid(size, res, t, seed, [=](int i, int j) { return !(i >= ci && j >= cj); });
+}
+
+void place_sheet(MeshData& m, SheetPlane plane, const Eigen::Vector3d& center) {
+  for (Eigen::Index k = 0; k < m.V.rows(); ++k) {
+    const Eigen::Vector3d p = m.V.row(k);
+    Eigen::Vector3d q = p;
+    switch (plane) {
+      case SheetPlane::xy: q = {p[0], p[1], p[2]}; break;
+      case SheetPlane::xz: q = {p[0], p[2], p[1]}; break;
+      case SheetPlane::yz: q = {p[2], p[0], p[1]}; break;
+    }
+    m.V.row(k) = (q + center).transpose();
+  }
+}
+
+}  // namespace weft

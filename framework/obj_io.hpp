@@ -1,0 +1,22 @@
+#pragma once
+/// \file obj_io.hpp
+/// Wavefront OBJ: reading through tinyobjloader (vertex order preserved as in the file,
+/// polygons triangulated), and writing frames.
+#include <Eigen/Core>
+
+#include <string>
+
+#include "framework/mesh_generators.hpp"
+
+namespace weft {
+
+/// Read a triangle mesh. Throws ConfigError naming the file for a missing or malformed
+/// file, or one without faces.
+MeshData read_obj(const std::string& path);
+
+/// Write vertices (#V*3 stacked) and faces. Writes to `path` + ".tmp" and renames, so a
+/// file is either complete or absent.
+void write_obj(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F,
+               const std::string& comment = {});
+
+}  // namespace weft

@@ -1,0 +1,91 @@
+#include "framework/reports.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace weft {
+namespace {
+// JSON has no NaN/Inf: write them as strings so every line stays valid JSON.
+Json num(double x) {
+  if (std::isfinite(x)) return x;
+  if (std::isnan(x)) return "nan";
+  return x > 0 ? "inf" : "-inf";
+}
+}  // namespace
+
+std::string_view to_string(Status s) {
+  switch (s) {
+    case Status::success: return "success";
+    case Status::no_convergence: return "no_convergence";
+    case Status::numerical_issue: return "numerical_issue";
+    case Status::invalid_input: return "invalid_input";
+    case Status::interrupted: return "interrupted";
+  }
+  return "?";
+}
+
+void LinearReport::accumulate(const LinearReport& r) {
+  solves += r.solves;
+  iterations += r.iterations;
+  relative_residual = std::max(relative_residual, r.relative_residual);
+  setup_seconds += r.setup_seconds;
+  solve_seconds += r.solve_seconds;
+  if (r.negative_pivots >= 0) negative_pivots = std::max(negative_pivots, r.negative_pivots);
+  if (r.status != Status::success && status == Status::success) {
+    status = r.status;
+    message = r.message;
+  }
+}
+
+Json to_json(const LinearReport& r) {
+  Json j{{"status", to_string(r.status)}, {"solves", r.solves}, {"iterations", r.iterations},
+         {"max_relative_residual", num(r.relative_residual)}, {"setup_seconds", r.setup_seconds},
+         {"solve_seconds", r.solve_seconds}};
+  if (r.negative_pivots >= 0) j["negative_pivots"] = r.negative_pivots;
+  if (!r.message.empty()) j["message"] = r.message;
+  return j;
+}
+
+Json to_json(const NewtonReport& r, bool with_history) {
+  Json j{{"status", to_string(r.status)}, {"iterations", r.iterations}, {"initial_residual", num(r.initial_residual)},
+         {"final_residual", num(r.final_residual)}, {"tolerance", num(r.tolerance)}, {"stop_reason", r.stop_reason}};
+  if (!r.message.empty()) j["message"] = r.message;
+  if (with_history) {
+    Json h = Json::array();
+    for (const auto& it : r.history)
+      h.push_back({{"merit", num(it.merit)}, {"residual", num(it.residual)}, {"slope", num(it.directional_derivative)},
+                   {"step_length", num(it.step_length)}, {"step_norm", num(it.step_norm)},
+                   {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations}});
+    j["history"] = h;
+  }
+  return j;
+}
+
+Json to_json(const ContactReport& r) {
+  Json j{{"status", to_string(r.status)}, {"contacts", r.contacts}, {"detection_seconds", r.detection_seconds},
+         {"response_seconds", r.response_seconds}};
+  if (!r.message.empty()) j["message"] = r.message;
+  return j;
+}
+
+Json to_json(const StageTimes& t) {
+  Json j = Json::object();
+  for (size_t i = 0; i < t.seconds.size(); ++i) j[std::string(stage_names[i])] = t.seconds[i];
+  return j;
+}
+
+Json to_json(const StepReport& r) {
+  Json energies{{"kinetic", num(r.energy.kinetic)}, {"potential", num(r.energy.potential)},
+                {"total", num(r.energy.kinetic + r.energy.potential)}};
+  for (const auto& [name, value] : r.energy.terms) energies[name] = num(value);
+  Json j{{"step", r.step},       {"time", r.time},
+         {"dt", r.dt},           {"status", to_string(r.status)},
+         {"energy", energies},   {"newton", to_json(r.newton)},
+         {"linear", to_json(r.linear)}, {"contact", to_json(r.contact)},
+         {"seconds", to_json(r.times)}};
+  if (!r.failed_stage.empty()) j["failed_stage"] = r.failed_stage;
+  if (!r.message.empty()) j["message"] = r.message;
+  return j;
+}
+
+}  // namespace weft

@@ -1,0 +1,290 @@
+#include "framework/scene.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "framework/mesh_generators.hpp"
+#include "framework/obj_io.hpp"
+
+namespace weft {
+
+Eigen::Vector3d Motion::apply(const Eigen::Vector3d& x0, double t) const {
+  const double tau = std::clamp(t, start, std::max(start, end)) - start;
+  Eigen::Vector3d x = x0 + velocity * tau;
+  const double angle = angular_velocity.norm() * tau;
+  if (angle > 0) {
+    const Eigen::AngleAxisd R(angle, angular_velocity.normalized());
+    x = center + velocity * tau + R * (x0 - center);
+  }
+  return x;
+}
+
+int TimeSpec::steps_per_frame() const { return std::max(1, static_cast<int>(std::lround(1.0 / (frame_rate * dt)))); }
+int TimeSpec::num_frames() const { return static_cast<int>(std::floor(duration * frame_rate + 1e-9)); }
+
+Eigen::VectorXd Scene::lumped_masses() const {
+  Eigen::VectorXd m = Eigen::VectorXd::Zero(mesh.num_vertices());
+  const auto& V = mesh.rest();
+  const auto& F = mesh.faces();
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    const double third = face_material(f).density * 0.5 * (b - a).cross(c - a).norm() / 3.0;
+    for (int k = 0; k < 3; ++k) m[F(f, k)] += third;
+  }
+  return m;
+}
+
+State Scene::initial_state() const {
+  State s;
+  const int n = mesh.num_vertices();
+  s.x.resize(3 * n);
+  s.v.resize(3 * n);
+  for (int i = 0; i < n; ++i) s.x.segment<3>(3 * i) = mesh.rest().row(i).transpose();
+  for (size_t c = 0; c < spec.cloths.size(); ++c)
+    for (int i = cloth_vertex_offset[c]; i < cloth_vertex_offset[c + 1]; ++i)
+      s.v.segment<3>(3 * i) = spec.cloths[c].initial_velocity;
+  s.mass = lumped_masses();
+  s.dof = dof;
+  for (int i = 0; i < n; ++i)
+    if (dof[i] != Dof::free) s.v.segment<3>(3 * i).setZero();
+  s.t = 0;
+  return s;
+}
+
+void Scene::constrained_positions(double t, const State& s, Eigen::VectorXd& target) const {
+  target = s.x;
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    if (dof[i] == Dof::pinned) target.segment<3>(3 * i) = mesh.rest().row(i).transpose();
+    else if (dof[i] == Dof::scripted) target.segment<3>(3 * i) = motions[vertex_motion[i]].apply(mesh.rest().row(i).transpose(), t);
+  }
+}
+
+namespace {
+
+void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
+  Checker c;
+  const double frame = 1.0 / s.time.frame_rate;
+  const double ratio = frame / s.time.dt;
+  c.require(s.time.dt <= frame * (1 + 1e-12), "time.dt", s.time.dt,
+            fmt::format("<= the frame interval 1/frame_rate = {} s", frame));
+  if (s.time.dt <= frame)
+    c.require(std::abs(ratio - std::round(ratio)) <= 1e-6 * ratio, "time.dt", s.time.dt,
+              fmt::format("divides the frame interval {} s (e.g. {} or {} s)", frame, frame / std::floor(ratio),
+                          frame / std::ceil(ratio)));
+  c.require(s.time.duration >= s.time.dt, "time.duration", s.time.duration, fmt::format(">= time.dt = {} s", s.time.dt));
+  for (size_t k = 0; k < s.cloths.size(); ++k) {
+    const auto& cl = s.cloths[k];
+    const std::string p = fmt::format("cloths.{}", k);
+    if (cl.mesh.source == MeshSource::file)
+      c.require(!cl.mesh.file.empty(), p + ".mesh.file", "\"\"", "a path to an OBJ file when mesh.source = file");
+    if (cl.mesh.source == MeshSource::l_shape)
+      c.require(cl.mesh.resolution[0] % 2 == 1 && cl.mesh.resolution[1] % 2 == 1, p + ".mesh.resolution",
+                fmt::format("[{}, {}]", cl.mesh.resolution[0], cl.mesh.resolution[1]), "odd numbers for an l_shape");
+    for (size_t q = 0; q < cl.pins.size(); ++q) {
+      const auto& pin = cl.pins[q];
+      const std::string pp = fmt::format("{}.pins.{}", p, q);
+      if (pin.vertices.empty() && !pin.has_box()) c.fail(pp + ": give `vertices` or a box (`box_min` <= `box_max`)");
+      c.require(pin.motion.end >= pin.motion.start, pp + ".motion.end", pin.motion.end, ">= motion.start");
+    }
+  }
+  for (size_t k = 0; k < s.obstacles.size(); ++k) {
+    const auto& o = s.obstacles[k];
+    const std::string p = fmt::format("obstacles.{}", k);
+    if (o.shape == ObstacleShape::plane)
+      c.require(o.normal.norm() > 1e-12, p + ".normal", fmt::format("[{}]", fmt::join(o.normal.data(), o.normal.data() + 3, ", ")),
+                "a nonzero vector");
+    c.require(o.motion.end >= o.motion.start, p + ".motion.end", o.motion.end, ">= motion.start");
+  }
+  errors.insert(errors.end(), c.violations().begin(), c.violations().end());
+}
+
+MeshData make_mesh(const MeshSpec& m, const std::string& base_dir) {
+  MeshData d;
+  switch (m.source) {
+    case MeshSource::rectangle:
+      d = make_rectangle(m.size, m.resolution, m.tessellation, m.seed);
+      place_sheet(d, m.plane, m.center);
+      break;
+    case MeshSource::l_shape:
+      d = make_l_shape(m.size, m.resolution, m.tessellation, m.seed);
+      place_sheet(d, m.plane, m.center);
+      break;
+    case MeshSource::file: {
+      const std::filesystem::path p = std::filesystem::path(m.file).is_absolute() ? std::filesystem::path(m.file)
+                                                                                   : std::filesystem::path(base_dir) / m.file;
+      d = read_obj(p.lexically_normal().string());
+      d.V *= m.scale;
+      d.V.rowwise() += m.translate.transpose();
+      break;
+    }
+  }
+  return d;
+}
+
+}  // namespace
+
+Scene build_scene(const Json& doc, const std::string& base_dir, const std::string& origin) {
+  const std::string header = fmt::format("{}: invalid scene", origin);
+  std::vector<std::string> errors;
+  if (!doc.is_object()) throw ConfigError(header, {"the document must be a JSON object"});
+
+  Scene scene;
+  scene.path = origin;
+  Json rest = doc;
+  scene.solver = Json::object();
+  for (const char* k : {"energy", "integrator", "contact", "linear"})
+    if (rest.contains(k)) {
+      scene.solver[k] = rest[k];
+      rest.erase(k);
+    }
+  {
+    JsonReader r(rest, "", errors);
+    scene.spec.visit(r);
+    r.finish();
+  }
+  if (!errors.empty()) throw ConfigError(header, errors);
+  validate_spec(scene.spec, errors);
+  if (!errors.empty()) throw ConfigError(header, errors);
+
+  // Meshes, concatenated.
+  std::vector<MeshData> parts;
+  for (size_t c = 0; c < scene.spec.cloths.size(); ++c) {
+    try {
+      parts.push_back(make_mesh(scene.spec.cloths[c].mesh, base_dir));
+    } catch (const ConfigError& e) {
+      errors.push_back(fmt::format("cloths.{}.mesh: {}", c, e.what()));
+    }
+  }
+  if (!errors.empty()) throw ConfigError(header, errors);
+  Eigen::Index nv = 0, nf = 0;
+  for (const auto& p : parts) nv += p.V.rows(), nf += p.F.rows();
+  Eigen::MatrixX3d V(nv, 3);
+  Eigen::MatrixX3i F(nf, 3);
+  scene.cloth_vertex_offset = {0};
+  scene.cloth_face_offset = {0};
+  for (size_t c = 0; c < parts.size(); ++c) {
+    const int v0 = scene.cloth_vertex_offset.back(), f0 = scene.cloth_face_offset.back();
+    V.middleRows(v0, parts[c].V.rows()) = parts[c].V;
+    F.middleRows(f0, parts[c].F.rows()) = parts[c].F.array() + v0;
+    scene.cloth_vertex_offset.push_back(v0 + static_cast<int>(parts[c].V.rows()));
+    scene.cloth_face_offset.push_back(f0 + static_cast<int>(parts[c].F.rows()));
+    scene.face_cloth.insert(scene.face_cloth.end(), parts[c].F.rows(), static_cast<int>(c));
+  }
+  try {
+    scene.mesh = TriangleMesh(V, F);
+  } catch (const ConfigError& e) {
+    throw ConfigError(header, {e.what()});
+  }
+  for (int f = 0; f < scene.mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    if ((b - a).cross(c - a).norm() <= 1e-14 * std::max(1e-300, (b - a).squaredNorm() + (c - a).squaredNorm())) {
+      errors.push_back(fmt::format("cloths.{}.mesh: face {} has zero rest area", scene.face_cloth[f],
+                                   f - scene.cloth_face_offset[scene.face_cloth[f]]));
+      if (errors.size() > 10) break;
+    }
+  }
+
+  // Pins and scripted vertices.
+  scene.dof.assign(nv, Dof::free);
+  scene.vertex_motion.assign(nv, -1);
+  for (size_t c = 0; c < scene.spec.cloths.size(); ++c) {
+    const auto& cl = scene.spec.cloths[c];
+    const int v0 = scene.cloth_vertex_offset[c], v1 = scene.cloth_vertex_offset[c + 1];
+    for (size_t q = 0; q < cl.pins.size(); ++q) {
+      const auto& pin = cl.pins[q];
+      const std::string p = fmt::format("cloths.{}.pins.{}", c, q);
+      std::vector<int> ids;
+      for (size_t k = 0; k < pin.vertices.size(); ++k) {
+        if (pin.vertices[k] >= v1 - v0)
+          errors.push_back(fmt::format("{}.vertices.{} = {} is out of range: valid 0..{}", p, k, pin.vertices[k], v1 - v0 - 1));
+        else
+          ids.push_back(v0 + pin.vertices[k]);
+      }
+      if (pin.has_box()) {
+        int found = 0;
+        for (int i = v0; i < v1; ++i) {
+          const Eigen::Vector3d r = V.row(i);
+          if ((r.array() >= pin.box_min.array()).all() && (r.array() <= pin.box_max.array()).all()) ids.push_back(i), ++found;
+        }
+        if (found == 0) errors.push_back(fmt::format("{}: the box [{}] .. [{}] selects no vertex of the cloth", p,
+                                                     fmt::join(pin.box_min.data(), pin.box_min.data() + 3, ", "),
+                                                     fmt::join(pin.box_max.data(), pin.box_max.data() + 3, ", ")));
+      }
+      const bool scripted = !pin.motion.is_static();
+      if (scripted) scene.motions.push_back(pin.motion);
+      for (int i : ids) {
+        scene.dof[i] = scripted ? Dof::scripted : Dof::pinned;
+        scene.vertex_motion[i] = scripted ? static_cast<int>(scene.motions.size()) - 1 : -1;
+      }
+    }
+  }
+  if (!errors.empty()) throw ConfigError(header, errors);
+  for (auto& o : scene.spec.obstacles)
+    if (o.shape == ObstacleShape::plane) o.normal.normalize();
+  return scene;
+}
+
+void apply_override(Json& doc, const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw ConfigError(fmt::format("override '{}' is not of the form key=value (e.g. time.dt=0.002)", assignment));
+  const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
+  Json value;
+  try {
+    value = Json::parse(text);
+  } catch (const Json::parse_error&) {
+    value = text;
+  }
+  Json* node = &doc;
+  std::stringstream ss(key);
+  std::string part, walked;
+  std::vector<std::string> parts;
+  while (std::getline(ss, part, '.')) parts.push_back(part);
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const std::string& p = parts[i];
+    if (p.empty()) throw ConfigError(fmt::format("override '{}': empty key component", assignment));
+    walked += (walked.empty() ? "" : ".") + p;
+    const bool last = i + 1 == parts.size();
+    if (node->is_array()) {
+      char* end = nullptr;
+      const long idx = std::strtol(p.c_str(), &end, 10);
+      if (*end != '\0' || idx < 0 || idx >= static_cast<long>(node->size()))
+        throw ConfigError(fmt::format("override '{}': {} is not an index of an array of {} entries", assignment, walked, node->size()));
+      node = &(*node)[static_cast<size_t>(idx)];
+    } else {
+      if (node->is_null()) *node = Json::object();
+      if (!node->is_object())
+        throw ConfigError(fmt::format("override '{}': {} is a value, not a section", assignment, walked));
+      node = &(*node)[p];
+    }
+    if (last) *node = value;
+  }
+}
+
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(fmt::format("{}: scene file not found or not readable", path));
+  Json doc;
+  try {
+    doc = Json::parse(in, nullptr, true, /*ignore_comments=*/true);
+  } catch (const Json::parse_error& e) {
+    throw ConfigError(fmt::format("{}: malformed JSON: {}", path, e.what()));
+  }
+  std::vector<std::string> errors;
+  for (const auto& o : overrides) {
+    try {
+      apply_override(doc, o);
+    } catch (const ConfigError& e) {
+      errors.emplace_back(e.what());
+    }
+  }
+  if (!errors.empty()) throw ConfigError(fmt::format("{}: invalid overrides", path), errors);
+  const auto dir = std::filesystem::path(path).parent_path().string();
+  return build_scene(doc, dir.empty() ? "." : dir, path);
+}
+
+}  // namespace weft

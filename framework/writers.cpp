@@ -1,0 +1,83 @@
+#include "framework/writers.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+
+namespace weft {
+
+AtomicFile::AtomicFile(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
+  out_.open(tmp_, std::ios::out | std::ios::trunc);
+  if (!out_) throw std::runtime_error(fmt::format("cannot write {}", tmp_));
+  out_.precision(17);
+}
+
+AtomicFile::~AtomicFile() {
+  if (!committed_) {
+    out_.close();
+    std::error_code ec;
+    std::filesystem::remove(tmp_, ec);
+  }
+}
+
+void AtomicFile::commit() {
+  out_.flush();
+  const bool ok = static_cast<bool>(out_);
+  out_.close();
+  if (!ok) throw std::runtime_error(fmt::format("error while writing {}", tmp_));
+  std::filesystem::rename(tmp_, path_);
+  committed_ = true;
+}
+
+void write_json_file(const std::string& path, const Json& j) {
+  AtomicFile f(path);
+  f.stream() << j.dump(2) << "\n";
+  f.commit();
+}
+
+void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const Eigen::VectorXd* velocity) {
+  AtomicFile f(path);
+  auto& s = f.stream();
+  const Eigen::Index nv = x.size() / 3, nf = F.rows();
+  s << "<?xml version=\"1.0\"?>\n"
+       "<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n<PolyData>\n";
+  s << fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n", nv, nf);
+  s << "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+  s << "</DataArray>\n</Points>\n";
+  if (velocity) {
+    s << "<PointData Vectors=\"velocity\">\n<DataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", (*velocity)[3 * i], (*velocity)[3 * i + 1], (*velocity)[3 * i + 2]);
+    s << "</DataArray>\n</PointData>\n";
+  }
+  s << "<Polys>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+  for (Eigen::Index k = 0; k < nf; ++k) s << fmt::format("{} {} {}\n", F(k, 0), F(k, 1), F(k, 2));
+  s << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+  for (Eigen::Index k = 0; k < nf; ++k) s << 3 * (k + 1) << (k % 16 == 15 ? "\n" : " ");
+  s << "\n</DataArray>\n</Polys>\n</Piece>\n</PolyData>\n</VTKFile>\n";
+  f.commit();
+}
+
+void PvdSeries::add(double time, const std::string& file, int part) {
+  entries_.push_back({time, part, file});
+  AtomicFile f(path_);
+  auto& s = f.stream();
+  s << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n<Collection>\n";
+  for (const auto& e : entries_)
+    s << fmt::format("  <DataSet timestep=\"{}\" group=\"\" part=\"{}\" file=\"{}\"/>\n", e.time, e.part, e.file);
+  s << "</Collection>\n</VTKFile>\n";
+  f.commit();
+}
+
+StatsWriter::StatsWriter(const std::string& path) : out_(path, std::ios::out | std::ios::trunc) {
+  if (!out_) throw std::runtime_error(fmt::format("cannot write {}", path));
+}
+
+void StatsWriter::write(const Json& line) {
+  out_ << line.dump() << '\n';
+  out_.flush();
+}
+
+}  // namespace weft

@@ -1,0 +1,63 @@
+#pragma once
+/// \file writers.hpp
+/// Output that survives failures: every file is written to a temporary name and renamed
+/// when complete; the .pvd series is rewritten after each frame, so it always lists
+/// exactly the frames on disk; statistics are JSON lines flushed one step at a time.
+#include <Eigen/Core>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "framework/params_json.hpp"
+
+namespace weft {
+
+/// A file that appears under its name only when `commit` is called.
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::string path);
+  ~AtomicFile();  // removes the temporary file if not committed
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  std::ofstream& stream() { return out_; }
+  void commit();  ///< flush, close and rename; throws std::runtime_error on I/O failure
+
+ private:
+  std::string path_, tmp_;
+  std::ofstream out_;
+  bool committed_ = false;
+};
+
+/// Write a JSON document atomically (pretty-printed).
+void write_json_file(const std::string& path, const Json& j);
+
+/// VTK XML PolyData (.vtp, ASCII): triangles plus per-point velocity.
+void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F,
+               const Eigen::VectorXd* velocity = nullptr);
+
+/// A ParaView collection (.pvd) listing time-stamped datasets.
+class PvdSeries {
+ public:
+  explicit PvdSeries(std::string path) : path_(std::move(path)) {}
+  /// Add a dataset (file name relative to the .pvd) and rewrite the .pvd.
+  void add(double time, const std::string& file, int part = 0);
+  const std::string& path() const { return path_; }
+
+ private:
+  struct Entry { double time; int part; std::string file; };
+  std::string path_;
+  std::vector<Entry> entries_;
+};
+
+/// Per-step statistics, one JSON object per line, flushed after every line.
+class StatsWriter {
+ public:
+  explicit StatsWriter(const std::string& path);
+  void write(const Json& line);
+
+ private:
+  std::ofstream out_;
+};
+
+}  // namespace weft

@@ -1,0 +1,66 @@
+#pragma once
+/// \file line_search.hpp
+/// Line searches on phi(s) = merit(d + s p). They see only the 1D function, so the same
+/// code serves every integrator and merit (spec 02 §6).
+#include <array>
+#include <cmath>
+#include <limits>
+#include <string_view>
+
+#include "framework/params.hpp"
+
+namespace weft::integrators {
+
+enum class LineSearchKind {
+  backtracking,  ///< Armijo sufficient decrease, safeguarded quadratic backtracking
+  full_step,     ///< s = 1 always (plain Newton)
+};
+inline constexpr std::array<std::string_view, 2> line_search_names = {"backtracking", "full_step"};
+
+struct LineSearchParams {
+  double c1 = 1e-4;          ///< Armijo constant
+  double shrink = 0.5;       ///< upper bound of the step reduction factor per trial
+  int max_evaluations = 40;  ///< trials before giving up
+  template <class V>
+  void visit(V& v) {
+    v.field("c1", c1, {Unit::none, Range::open(0, 0.5), "Armijo sufficient-decrease constant"});
+    v.field("shrink", shrink, {Unit::none, Range::open(0, 1), "largest step reduction factor per backtracking trial"});
+    v.field("max_evaluations", max_evaluations, {Unit::none, Range::closed(1, 200), "trial steps before the search fails"});
+  }
+};
+
+struct LineSearchResult {
+  bool accepted = false;
+  double step = 0;   ///< accepted s
+  double value = 0;  ///< phi(s)
+  int evaluations = 0;
+};
+
+/// Armijo backtracking from s = 1: accept the first s with phi(s) <= phi0 + c1 s slope.
+/// Trial steps come from the minimiser of the quadratic through phi0, slope and phi(s),
+/// clamped to [0.1 s, shrink s]; a non-finite phi(s) shrinks by 0.1.
+template <class Phi>
+LineSearchResult backtracking(Phi&& phi, double phi0, double slope, const LineSearchParams& prm) {
+  LineSearchResult r;
+  double s = 1.0;
+  for (r.evaluations = 1; r.evaluations <= prm.max_evaluations; ++r.evaluations) {
+    const double value = phi(s);
+    if (std::isfinite(value) && value <= phi0 + prm.c1 * s * slope) {
+      r.accepted = true;
+      r.step = s;
+      r.value = value;
+      return r;
+    }
+    double next = 0.1 * s;
+    if (std::isfinite(value)) {
+      const double denom = 2.0 * (value - phi0 - slope * s);
+      if (denom > 0) next = -slope * s * s / denom;
+      next = std::clamp(next, 0.1 * s, prm.shrink * s);
+    }
+    s = next;
+  }
+  r.evaluations = prm.max_evaluations;
+  return r;
+}
+
+}  // namespace weft::integrators

@@ -1,0 +1,30 @@
+#pragma once
+/// \file presets.hpp
+/// Named energies and the curated combinations of policies. Each combination is
+/// instantiated once, in its own translation unit under policies/combos/, and declared
+/// `extern template` here so no other file instantiates it again.
+#include "contact/no_contact.hpp"
+#include "framework/simulator.hpp"
+#include "integrators/incremental_potential.hpp"
+#include "linear/direct.hpp"
+#include "models/energy_sum.hpp"
+#include "models/gravity.hpp"
+#include "models/hinge_bending.hpp"
+#include "models/stvk_membrane.hpp"
+
+namespace weft {
+
+/// Isotropic StVK membrane + discrete-shells hinge bending (theta) + gravity.
+using ClothTheta = models::EnergySum<models::StvkMembrane<models::Isotropic>, models::HingeBending<models::ThetaEnergy>,
+                                     models::Gravity>;
+/// Same with the tan(theta/2) bending energy of thesis Eq. 5.8.
+using ClothTan = models::EnergySum<models::StvkMembrane<models::Isotropic>, models::HingeBending<models::TanEnergy>,
+                                   models::Gravity>;
+
+using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+
+}  // namespace weft

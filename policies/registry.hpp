@@ -1,0 +1,48 @@
+#pragma once
+/// \file registry.hpp
+/// The pre-built combinations, selectable by name at run time (`weft list`, the scene's
+/// "combo" key). Generated from one table (registry.cpp), so the names, the help text
+/// and the factories cannot drift apart.
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "framework/any_simulator.hpp"
+#include "framework/scene.hpp"
+
+namespace weft {
+
+/// The reference rows of one policy's parameters (for docs/scene-reference.md).
+struct PolicyDoc {
+  std::string section;  ///< "energy", "integrator", "contact" or "linear"
+  std::string policy;   ///< the policy's name
+  std::vector<std::string> rows;
+};
+
+struct ComboInfo {
+  std::string_view key;          ///< the name used in scenes and on the command line
+  std::string_view energy, integrator, contact, linear;
+  std::string_view description;
+  /// Build a simulator for a validated scene; reads the solver sections strictly.
+  std::unique_ptr<AnySimulator> (*make)(const Scene&);
+  /// Reference rows of every policy of the combination.
+  std::vector<PolicyDoc> (*docs)();
+};
+
+/// All pre-built combinations, in table order.
+std::span<const ComboInfo> combos();
+
+/// Why `combo` cannot run `scene` ("" if it can).
+std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene);
+
+/// The simulator for `scene.spec.combo`. Throws ConfigError naming the scene file when the
+/// combination is unknown (listing the available ones), does not apply to the scene, or
+/// its parameters are invalid (all violations at once).
+std::unique_ptr<AnySimulator> make_simulator(const Scene& scene);
+
+/// The scene reference document (Markdown), generated from the `visit` functions.
+std::string scene_reference();
+
+}  // namespace weft

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Install what is missing (Debian 12 packages), configure once, build incrementally.
+# Idempotent: a second run installs nothing and rebuilds nothing that did not change.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(cmake ninja-build g++ ccache pkg-config
+          libeigen3-dev libboost-dev libfmt-dev doctest-dev
+          nlohmann-json3-dev libtinyobjloader-dev libcli11-dev libspdlog-dev)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+PRESET="${WEFT_PRESET:-release}"
+if [ ! -f "build/$PRESET/build.ninja" ]; then
+  cmake --preset "$PRESET"
+fi
+cmake --build --preset "$PRESET"

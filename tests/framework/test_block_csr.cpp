@@ -1,0 +1,148 @@
+#include <doctest/doctest.h>
+
+#include <random>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "framework/block_csr.hpp"
+#include "framework/mesh_generators.hpp"
+#include "framework/triangle_mesh.hpp"
+
+using namespace weft;
+
+namespace {
+struct Fixture {
+  TriangleMesh mesh;
+  AssemblyPlan plan;
+  int g3 = -1, g4 = -1;
+  std::vector<int> tri, hinge;
+  Fixture() {
+    const auto m = make_rectangle({1, 1}, {7, 6}, Tessellation::irregular, 5);
+    mesh = TriangleMesh(m.V, m.F);
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) tri.push_back(mesh.faces()(f, k));
+    for (const auto& h : mesh.hinges()) hinge.insert(hinge.end(), h.v.begin(), h.v.end());
+    g3 = plan.add_group(3, tri);
+    g4 = plan.add_group(4, hinge);
+    plan.finalize(mesh.num_vertices());
+  }
+  // Random local matrices; the dense reference scatters them naively.
+  Eigen::MatrixXd fill(ElementBuffer& buf, unsigned seed) const {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(3 * mesh.num_vertices(), 3 * mesh.num_vertices());
+    auto group = [&](int g, int k, const std::vector<int>& ids) {
+      for (size_t e = 0; e < ids.size() / k; ++e) {
+        Eigen::MatrixXd L(3 * k, 3 * k);
+        for (int i = 0; i < L.size(); ++i) L.data()[i] = u(rng);
+        buf.set(g, static_cast<int>(e), L);
+        for (int a = 0; a < k; ++a)
+          for (int b = 0; b < k; ++b) dense.block<3, 3>(3 * ids[e * k + a], 3 * ids[e * k + b]) += L.block<3, 3>(3 * a, 3 * b);
+      }
+    };
+    group(g3, 3, tri);
+    group(g4, 4, hinge);
+    return dense;
+  }
+};
+}  // namespace
+
+TEST_SUITE("framework") {
+  TEST_CASE("BlockCsr: gathered assembly equals a dense reference") {
+    Fixture fx;
+    ElementBuffer buf = fx.plan.make_buffer();
+    const Eigen::MatrixXd dense = fx.fill(buf, 11);
+    BlockCsr A = fx.plan.pattern();
+    fx.plan.gather(buf, A);
+    REQUIRE(dense.norm() > 0);
+    CHECK((A.to_dense() - dense).norm() <= 1e-13 * dense.norm());
+    CHECK((Eigen::MatrixXd(A.to_sparse()) - dense).norm() <= 1e-13 * dense.norm());
+    // The pattern holds exactly the vertex pairs that share an element.
+    int nonzero_blocks = 0;
+    for (int i = 0; i < fx.mesh.num_vertices(); ++i)
+      for (int j = 0; j < fx.mesh.num_vertices(); ++j) nonzero_blocks += dense.block<3, 3>(3 * i, 3 * j).norm() > 0;
+    CHECK(A.num_blocks() == nonzero_blocks);
+  }
+
+  TEST_CASE("BlockCsr: the pattern is reused across evaluations") {
+    Fixture fx;
+    ElementBuffer buf = fx.plan.make_buffer();
+    BlockCsr A = fx.plan.pattern();
+    const auto col_before = A.col();
+    fx.fill(buf, 1);
+    fx.plan.gather(buf, A);
+    const Eigen::MatrixXd d2 = fx.fill(buf, 2);
+    fx.plan.gather(buf, A);  // overwrites, does not accumulate
+    CHECK(A.col() == col_before);
+    CHECK((A.to_dense() - d2).norm() <= 1e-13 * d2.norm());
+  }
+
+  TEST_CASE("BlockCsr: parallel assembly is bitwise deterministic across thread counts") {
+    Fixture fx;
+    ElementBuffer buf = fx.plan.make_buffer();
+    fx.fill(buf, 3);
+    BlockCsr A = fx.plan.pattern(), B = fx.plan.pattern();
+#ifdef _OPENMP
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    fx.plan.gather(buf, A);
+    omp_set_num_threads(std::max(2, saved));
+    fx.plan.gather(buf, B);
+    omp_set_num_threads(saved);
+#else
+    fx.plan.gather(buf, A);
+    fx.plan.gather(buf, B);
+#endif
+    REQUIRE(A.values().size() == B.values().size());
+    CHECK(std::equal(A.values().begin(), A.values().end(), B.values().begin()));
+  }
+
+  TEST_CASE("BlockCsr: multiply, diagonal, scale and Dirichlet filter") {
+    Fixture fx;
+    ElementBuffer buf = fx.plan.make_buffer();
+    Eigen::MatrixXd dense = fx.fill(buf, 4);
+    BlockCsr A = fx.plan.pattern();
+    fx.plan.gather(buf, A);
+    Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(A.rows(), -1, 2), y;
+    A.multiply(x, y);
+    CHECK((y - dense * x).norm() <= 1e-12 * (dense * x).norm());
+
+    Eigen::VectorXd d = Eigen::VectorXd::Constant(A.rows(), 0.5);
+    A.add_diagonal(d);
+    A.scale(2.0);
+    dense = 2.0 * (dense + Eigen::MatrixXd(d.asDiagonal()));
+    CHECK((A.to_dense() - dense).norm() <= 1e-12 * dense.norm());
+
+    std::vector<unsigned char> fixed(A.block_rows(), 0);
+    fixed[0] = fixed[5] = 1;
+    A.filter_rows(fixed, 1.0);
+    const Eigen::MatrixXd F = A.to_dense();
+    for (int i : {0, 5}) {
+      CHECK((F.block(3 * i, 0, 3, F.cols()).rowwise().norm() - Eigen::Vector3d::Ones()).norm() <= 1e-15);
+      CHECK(F.block<3, 3>(3 * i, 3 * i).isIdentity());
+      CHECK(F.block(0, 3 * i, F.rows(), 3).colwise().norm().isOnes());
+    }
+    CHECK(F.block(3, 3, 12, 12).isApprox(dense.block(3, 3, 12, 12)));
+  }
+
+  TEST_CASE("BlockCsr: symmetric element matrices give a symmetric matrix; lower-only export") {
+    Fixture fx;
+    ElementBuffer buf = fx.plan.make_buffer();
+    std::mt19937 rng(8);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int e = 0; e < fx.mesh.num_faces(); ++e) {
+      Eigen::Matrix<double, 9, 9> L;
+      for (int i = 0; i < 81; ++i) L.data()[i] = u(rng);
+      buf.set(fx.g3, e, L + L.transpose());
+    }
+    buf.zero_group(fx.g4);
+    BlockCsr A = fx.plan.pattern();
+    fx.plan.gather(buf, A);
+    CHECK(A.asymmetry() <= 1e-15);
+    const Eigen::MatrixXd lower = Eigen::MatrixXd(A.to_sparse(true));
+    const Eigen::MatrixXd full = A.to_dense();
+    CHECK((Eigen::MatrixXd(lower.triangularView<Eigen::Lower>()) - lower).norm() == 0.0);
+    CHECK((Eigen::MatrixXd(lower.selfadjointView<Eigen::Lower>()) - full).norm() <= 1e-14 * full.norm());
+  }
+}
