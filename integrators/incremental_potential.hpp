@@ -129,13 +129,13 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
   };
   auto norm_minv = [&](const Eigen::VectorXd& f) { return std::sqrt(f.cwiseAbs2().cwiseQuotient(mt_).sum()); };
 
-  double E = merit(d_);
-  if (!std::isfinite(E)) {
+  double e_inc = merit(d_);
+  if (!std::isfinite(e_inc)) {
     // The inertial guess may leave the model's domain; start from rest instead.
     for (int i = 0; i < n; ++i)
       if (!p.fixed[i]) d_.segment<3>(3 * i).setZero();
-    E = merit(d_);
-    if (!std::isfinite(E)) return fail("energy", Status::numerical_issue, "the state at the start of the step is not admissible (non-finite energy)");
+    e_inc = merit(d_);
+    if (!std::isfinite(e_inc)) return fail("energy", Status::numerical_issue, "the state at the start of the step is not admissible (non-finite energy)");
   }
   gradient(d_, f_);
   double r = norm_minv(f_);
@@ -156,7 +156,7 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
                               nr.tolerance, it, r, nr.initial_residual));
     }
     NewtonIteration rec;
-    rec.merit = E;
+    rec.merit = e_inc;
     rec.residual = r;
     // K = M~ + dt^2 (H + contact terms), filtered to the free vertices.
     {
@@ -206,13 +206,13 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
         ls = {true, 1.0, merit(d_ + dir_), 1};
       } else {
         Eigen::VectorXd trial_d;
-        ls = backtracking([&](double step) { trial_d = d_ + step * dir_; return merit(trial_d); }, E, slope, prm_.search);
+        ls = backtracking([&](double step) { trial_d = d_ + step * dir_; return merit(trial_d); }, e_inc, slope, prm_.search);
       }
     }
     rec.line_search_evaluations = ls.evaluations;
     if (!ls.accepted) {
       // Below round-off the decrease of E_inc cannot be resolved: converged to precision.
-      const double resolvable = 1e-12 * (std::abs(E) + dt2 * std::abs(V0)) + 1e-300;
+      const double resolvable = 1e-12 * (std::abs(e_inc) + dt2 * std::abs(V0)) + 1e-300;
       if (std::abs(slope) < resolvable) {
         nr.history.push_back(rec);
         nr.iterations = it + 1;
@@ -228,7 +228,7 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
     rec.step_length = ls.step;
     rec.step_norm = ls.step * dir_.cwiseAbs().maxCoeff();
     d_ += ls.step * dir_;
-    E = ls.value;
+    e_inc = ls.value;
     gradient(d_, f_);
     r = norm_minv(f_);
     nr.history.push_back(rec);

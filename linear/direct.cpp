@@ -1,6 +1,7 @@
 #include "linear/direct.hpp"
 
 #include <algorithm>
+#include <limits>
 
 #include "framework/timers.hpp"
 
@@ -51,7 +52,10 @@ Status Direct::factorize(const BlockCsr& A) {
   if (factorized_) {
     const auto& D = ldlt_.vectorD();
     negative_pivots_ = static_cast<int>((D.array() < 0).count());
-    if (!D.allFinite() || (D.array() == 0).any()) factorized_ = false;
+    // A pivot at round-off level relative to the largest means a numerically singular
+    // matrix (e.g. an unpinned body without mass): refuse rather than return garbage.
+    const double tiny = 1e3 * std::numeric_limits<double>::epsilon() * D.cwiseAbs().maxCoeff();
+    if (!D.allFinite() || (D.array().abs() <= tiny).any()) factorized_ = false;
   }
   return factorized_ ? Status::success : Status::numerical_issue;
 }
@@ -64,7 +68,7 @@ LinearReport Direct::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   r.negative_pivots = negative_pivots_;
   if (!factorized_) {
     r.status = Status::numerical_issue;
-    r.message = "LDL^T factorisation failed (singular or non-finite matrix)";
+    r.message = "LDL^T factorisation failed: the matrix is numerically singular or not finite";
     return r;
   }
   {

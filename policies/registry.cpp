@@ -16,17 +16,17 @@
 
 namespace weft {
 
-namespace combos {
+namespace combo_factories {
 #define WEFT_DECLARE(key, ...)                               \
   std::unique_ptr<AnySimulator> make_##key(const Scene&); \
   std::vector<PolicyDoc> docs_##key();
 WEFT_COMBO_TABLE(WEFT_DECLARE)
 #undef WEFT_DECLARE
-}  // namespace combos
+}  // namespace combo_factories
 
 namespace {
 #define WEFT_ROW(key, energy, integrator, contact, linear, description) \
-  ComboInfo{#key, energy, integrator, contact, linear, description, &combos::make_##key, &combos::docs_##key},
+  ComboInfo{#key, energy, integrator, contact, linear, description, &combo_factories::make_##key, &combo_factories::docs_##key},
 const ComboInfo table[] = {WEFT_COMBO_TABLE(WEFT_ROW)};
 #undef WEFT_ROW
 }  // namespace

@@ -98,7 +98,7 @@ TEST_SUITE("framework") {
     CHECK(std::equal(A.values().begin(), A.values().end(), B.values().begin()));
   }
 
-  TEST_CASE("BlockCsr: multiply, diagonal, scale and Dirichlet filter") {
+  TEST_CASE("BlockCsr: multiply / diagonal / scale and Dirichlet filter") {
     Fixture fx;
     ElementBuffer buf = fx.plan.make_buffer();
     Eigen::MatrixXd dense = fx.fill(buf, 4);
@@ -126,7 +126,7 @@ TEST_SUITE("framework") {
     CHECK(F.block(3, 3, 12, 12).isApprox(dense.block(3, 3, 12, 12)));
   }
 
-  TEST_CASE("BlockCsr: symmetric element matrices give a symmetric matrix; lower-only export") {
+  TEST_CASE("BlockCsr: symmetric element matrices give a symmetric matrix - lower-only export") {
     Fixture fx;
     ElementBuffer buf = fx.plan.make_buffer();
     std::mt19937 rng(8);

@@ -27,7 +27,7 @@ int faces_facing_up(const TriangleMesh& m) {
 }  // namespace
 
 TEST_SUITE("framework") {
-  TEST_CASE("rectangle: topology counts and orientation, regular and irregular") {
+  TEST_CASE("rectangle: topology counts and orientation / regular and irregular") {
     for (auto t : {Tessellation::regular, Tessellation::irregular})
       for (auto res : {std::array<int, 2>{2, 2}, std::array<int, 2>{5, 3}, std::array<int, 2>{11, 11}}) {
         CAPTURE(static_cast<int>(t));
@@ -47,7 +47,7 @@ TEST_SUITE("framework") {
       }
   }
 
-  TEST_CASE("rectangle: irregular tessellation jitters interior vertices only, deterministically") {
+  TEST_CASE("rectangle: irregular tessellation jitters interior vertices only / deterministically") {
     const auto r = make_rectangle({1, 1}, {9, 9}, Tessellation::regular, 1);
     const auto a = make_rectangle({1, 1}, {9, 9}, Tessellation::irregular, 1);
     const auto b = make_rectangle({1, 1}, {9, 9}, Tessellation::irregular, 1);
@@ -65,7 +65,7 @@ TEST_SUITE("framework") {
     CHECK(boundary_moved == 0);
   }
 
-  TEST_CASE("l_shape: counts, re-entrant corner and orientation") {
+  TEST_CASE("l_shape: counts / re-entrant corner and orientation") {
     const int n = 9, c = 4;  // cut at grid line 4
     const auto m = to_mesh(make_l_shape({1, 1}, {n, n}, Tessellation::regular, 1));
     CHECK(m.num_vertices() == n * n - (n - 1 - c) * (n - 1 - c));
@@ -127,7 +127,7 @@ TEST_SUITE("framework") {
     CHECK_THROWS_WITH_AS(TriangleMesh(V, repeated), doctest::Contains("repeats a vertex"), ConfigError);
   }
 
-  TEST_CASE("obj: write then read keeps vertex order, faces and orientation") {
+  TEST_CASE("obj: write then read keeps vertex order / faces and orientation") {
     const auto tmp = std::filesystem::temp_directory_path() / "weft_test_mesh.obj";
     const auto m = make_rectangle({1, 1}, {5, 4}, Tessellation::irregular, 9);
     Eigen::VectorXd x(3 * m.V.rows());
@@ -141,7 +141,7 @@ TEST_SUITE("framework") {
     std::filesystem::remove(tmp);
   }
 
-  TEST_CASE("obj: polygons are triangulated; missing and malformed files are configuration errors") {
+  TEST_CASE("obj: polygons are triangulated - missing and malformed files are configuration errors") {
     const auto dir = std::filesystem::temp_directory_path();
     {
       std::ofstream f(dir / "weft_quad.obj");

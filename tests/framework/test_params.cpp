@@ -36,7 +36,7 @@ struct Outer {
 }  // namespace
 
 TEST_SUITE("framework") {
-  TEST_CASE("params: every violation is reported at once, with key path, value and valid range") {
+  TEST_CASE("params: every violation is reported at once / with key path / value and valid range") {
     const Json j = Json::parse(R"({"length": -2, "count": 11, "enabled": "yes", "flavour": "spicy",
                                    "direction": [1, 2], "inner": {"stiffness": "3 mm", "extra": 1}, "typo": 0})");
     try {
@@ -58,7 +58,7 @@ TEST_SUITE("framework") {
     }
   }
 
-  TEST_CASE("params: valid values, units and defaults") {
+  TEST_CASE("params: valid values / units and defaults") {
     const Json j = Json::parse(R"({"length": "25 cm", "flavour": "fancy", "maybe": "5 ms", "inner": {"stiffness": "2 kPa"}})");
     const Outer o = read_params<Outer>(j, "", "bad:");
     CHECK(o.length == doctest::Approx(0.25));
@@ -95,7 +95,7 @@ TEST_SUITE("framework") {
     CHECK_THROWS_AS(c.throw_if_failed(), ConfigError);
   }
 
-  TEST_CASE("overrides: dotted keys mirror the tree; arrays by index; malformed rejected") {
+  TEST_CASE("overrides: dotted keys mirror the tree - arrays by index - malformed rejected") {
     Json doc = Json::parse(R"({"time": {"dt": 0.01}, "cloths": [{"material": {"thickness": 1}}]})");
     apply_override(doc, "time.dt=0.002");
     apply_override(doc, "cloths.0.material.thickness=\"0.5 mm\"");

@@ -27,7 +27,7 @@ std::string errors_of(const Json& doc) {
 }  // namespace
 
 TEST_SUITE("framework") {
-  TEST_CASE("scene: a valid scene builds its mesh, pins, masses and state") {
+  TEST_CASE("scene: a valid scene builds its mesh / pins / masses and state") {
     const Scene s = build_scene(base_scene(), ".", "test.json");
     CHECK(s.mesh.num_vertices() == 25);
     int pinned = 0;
@@ -42,7 +42,7 @@ TEST_SUITE("framework") {
     CHECK(s.spec.time.num_frames() == 2);
   }
 
-  TEST_CASE("scene: every problem is reported at once, with file and key path") {
+  TEST_CASE("scene: every problem is reported at once / with file and key path") {
     Json doc = base_scene();
     doc["time"]["dt"] = -1;
     doc["cloths"][0]["material"] = {{"poisson_ratio", 1.5}, {"thickness", "2 Pa"}};
@@ -98,7 +98,7 @@ TEST_SUITE("framework") {
       }
   }
 
-  TEST_CASE("scene: load_scene reads comments, applies overrides, reports malformed JSON") {
+  TEST_CASE("scene: load_scene reads comments / applies overrides / reports malformed JSON") {
     const auto dir = std::filesystem::temp_directory_path();
     const auto path = (dir / "weft_scene_test.json").string();
     {

@@ -1,0 +1,107 @@
+#include <doctest/doctest.h>
+
+#include "cli_support.hpp"
+
+using namespace weft::test;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+// Runs `weft run` on a scene and checks the configuration-error contract: exit code 2,
+// the message names the file and every given fragment, and no output directory appears.
+void expect_config_error(const std::string& name, const json& scene, std::vector<std::string> fragments,
+                         const std::string& extra_args = "") {
+  const auto dir = temp_dir(name);
+  const std::string path = write_file(dir / "scene.json", scene.dump(2));
+  const auto out = dir / "out";
+  const Result r = run_weft(fmt::format("run {} --out {} {}", path, out.string(), extra_args));
+  CAPTURE(r.output);
+  CHECK(r.code == 2);
+  CHECK(r.output.find(path) != std::string::npos);
+  for (const auto& f : fragments) CHECK_MESSAGE(r.output.find(f) != std::string::npos, f);
+  CHECK_FALSE(fs::exists(out));
+}
+}  // namespace
+
+TEST_SUITE("apps") {
+  TEST_CASE("cli: --help and list describe the command and the pre-built combinations") {
+    const Result help = run_weft("--help");
+    CHECK(help.code == 0);
+    for (const char* s : {"run", "list", "keys"}) CHECK(help.output.find(s) != std::string::npos);
+    const Result list = run_weft("list");
+    CHECK(list.code == 0);
+    for (const char* s : {"cloth_ip_direct", "cloth_tan_ip_direct", "incremental_potential", "direct"})
+      CHECK(list.output.find(s) != std::string::npos);
+    const Result bad = run_weft("frobnicate");
+    CHECK(bad.code != 0);
+  }
+
+  TEST_CASE("cli: unknown key / wrong type and out-of-range value are all reported / nothing written") {
+    json s = small_scene();
+    s["cloths"][0]["mesh"]["colour"] = "red";
+    s["time"]["duration"] = "long";
+    s["cloths"][0]["material"]["poisson_ratio"] = 2;
+    expect_config_error("cfg_many", s,
+                        {"cloths.0.mesh.colour is not a known key", "time.duration = \"long\"",
+                         "cloths.0.material.poisson_ratio = 2 is out of range: valid in (-1, 1)"});
+  }
+
+  TEST_CASE("cli: solver parameters are validated strictly too") {
+    json s = small_scene();
+    s["integrator"] = {{"max_iterations", 0}, {"line_serch", "backtracking"}};
+    s["linear"] = {{"check_residual", 3}};
+    expect_config_error("cfg_solver", s,
+                        {"integrator.max_iterations = 0 is out of range: valid in [1, 10000]",
+                         "integrator.line_serch is not a known key", "linear.check_residual = 3 has the wrong type"});
+  }
+
+  TEST_CASE("cli: missing and malformed mesh files") {
+    json s = small_scene();
+    s["cloths"][0]["mesh"] = {{"source", "file"}, {"file", "nowhere.obj"}};
+    expect_config_error("cfg_missing_mesh", s, {"cloths.0.mesh", "nowhere.obj: mesh file not found"});
+    const auto dir = temp_dir("cfg_bad_obj");
+    write_file(dir / "bad.obj", "v 0 0 0\nv 1 0 0\nf 1 2 7\n");
+    s["cloths"][0]["mesh"]["file"] = "bad.obj";
+    const std::string path = write_file(dir / "scene.json", s.dump());
+    const Result r = run_weft(fmt::format("run {} --out {}", path, (dir / "out").string()));
+    CAPTURE(r.output);
+    CHECK(r.code == 2);
+    CHECK(r.output.find("bad.obj: malformed OBJ") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "out"));
+  }
+
+  TEST_CASE("cli: malformed JSON / unknown combo / unknown override / missing scene") {
+    const auto dir = temp_dir("cfg_json");
+    const std::string path = write_file(dir / "scene.json", "{\"cloths\": [");
+    Result r = run_weft(fmt::format("run {} --out {}", path, (dir / "out").string()));
+    CHECK(r.code == 2);
+    CHECK(r.output.find("malformed JSON") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "out"));
+
+    json s = small_scene();
+    s["combo"] = "cloth_magic";
+    expect_config_error("cfg_combo", s, {"combo = \"cloth_magic\" is not a pre-built combination", "cloth_ip_direct"});
+    expect_config_error("cfg_override", small_scene(), {"integrator.tolerence is not a known key"}, "integrator.tolerence=1e-8");
+    expect_config_error("cfg_override_syntax", small_scene(), {"not of the form key=value"}, "time.dt");
+    expect_config_error("cfg_override_range", small_scene(), {"time.dt = 2 s is out of range"}, "time.dt=2");
+
+    r = run_weft("run /nonexistent/scene.json");
+    CHECK(r.code == 2);
+    CHECK(r.output.find("/nonexistent/scene.json: scene file not found") != std::string::npos);
+  }
+
+  TEST_CASE("cli: obstacles without a contact strategy are rejected / with the reason") {
+    json s = small_scene();
+    s["obstacles"] = json::array({{{"shape", "sphere"}, {"center", {0, 0, -0.5}}, {"radius", 0.2}}});
+    expect_config_error("cfg_obstacle", s, {"contact = none would let the cloth pass through them"});
+  }
+
+  TEST_CASE("cli: the scene reference document is generated from the code and up to date") {
+    const Result r = run_weft("keys");
+    REQUIRE(r.code == 0);
+    const std::string doc = slurp(fs::path(WEFT_SOURCE_DIR) / "docs" / "scene-reference.md");
+    CHECK(r.output.find("cloths.N.material.youngs_modulus") != std::string::npos);
+    CHECK(r.output.find("integrator.max_iterations") != std::string::npos);
+    CHECK_MESSAGE(doc == r.output, "docs/scene-reference.md is stale: regenerate it with `weft keys > docs/scene-reference.md`");
+  }
+}
