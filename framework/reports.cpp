@@ -31,6 +31,7 @@ void LinearReport::accumulate(const LinearReport& r) {
   setup_seconds += r.setup_seconds;
   solve_seconds += r.solve_seconds;
   if (r.negative_pivots >= 0) negative_pivots = std::max(negative_pivots, r.negative_pivots);
+  indefinite = indefinite || r.indefinite;
   if (r.status != Status::success && status == Status::success) {
     status = r.status;
     message = r.message;
@@ -42,6 +43,7 @@ Json to_json(const LinearReport& r) {
          {"max_relative_residual", num(r.relative_residual)}, {"setup_seconds", r.setup_seconds},
          {"solve_seconds", r.solve_seconds}};
   if (r.negative_pivots >= 0) j["negative_pivots"] = r.negative_pivots;
+  j["indefinite"] = r.indefinite;
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }
@@ -55,7 +57,8 @@ Json to_json(const NewtonReport& r, bool with_history) {
     for (const auto& it : r.history)
       h.push_back({{"merit", num(it.merit)}, {"residual", num(it.residual)}, {"slope", num(it.directional_derivative)},
                    {"step_length", num(it.step_length)}, {"step_norm", num(it.step_norm)},
-                   {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations}});
+                   {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations},
+                   {"projected", it.projected}});
     j["history"] = h;
   }
   return j;

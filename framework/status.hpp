@@ -31,6 +31,7 @@ struct LinearReport {
   double setup_seconds = 0;       ///< analyze_pattern + factorize
   double solve_seconds = 0;
   int negative_pivots = -1;       ///< LDL^T only: count of negative D entries (-1: unknown)
+  bool indefinite = false;        ///< the solver found the matrix not positive definite
   std::string message;
   void accumulate(const LinearReport& r);
 };
@@ -44,6 +45,7 @@ struct NewtonIteration {
   double step_norm = 0;               ///< max-norm of the accepted displacement increment [m]
   int line_search_evaluations = 0;
   int linear_iterations = 0;
+  bool projected = false;             ///< the direction used the PSD-projected Hessian
 };
 
 struct NewtonReport {

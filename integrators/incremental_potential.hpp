@@ -24,6 +24,14 @@
 
 namespace weft::integrators {
 
+/// Which Hessian the Newton directions use.
+enum class HessianChoice {
+  adaptive,   ///< exact while K = M + dt^2 H is positive definite, else per-element PSD projection
+  exact,      ///< always exact (falls back to -M^-1 f when the direction does not descend)
+  projected,  ///< always per-element PSD projection
+};
+inline constexpr std::array<std::string_view, 3> hessian_choice_names = {"adaptive", "exact", "projected"};
+
 enum class InitialGuess {
   inertial,  ///< d0 = dt v_k (free vertices)
   zero,      ///< d0 = 0
@@ -39,7 +47,7 @@ class IncrementalPotential {
     int max_iterations = 50;            ///< Newton iterations per step
     double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
     double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
-    HessianMode hessian = HessianMode::projected;
+    HessianChoice hessian = HessianChoice::adaptive;
     LineSearchKind line_search = LineSearchKind::backtracking;
     LineSearchParams search;
     InitialGuess initial_guess = InitialGuess::inertial;
@@ -50,7 +58,8 @@ class IncrementalPotential {
               {Unit::none, Range::closed(0, 1), "stop when ||f||_M^-1 <= relative_tolerance ||f(d0)||_M^-1 + absolute"});
       v.field("length_tolerance", length_tolerance,
               {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
-      v.choice("hessian", hessian, hessian_mode_names, "exact, or per-element projection to PSD");
+      v.choice("hessian", hessian, hessian_choice_names,
+               "adaptive: exact while K is positive definite, else per-element PSD projection");
       v.choice("line_search", line_search, line_search_names, "globalisation on E_inc");
       v.section("search", search);
       v.choice("initial_guess", initial_guess, initial_guess_names, "start of the Newton iteration");
@@ -158,39 +167,58 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
     NewtonIteration rec;
     rec.merit = e_inc;
     rec.residual = r;
-    // K = M~ + dt^2 (H + contact terms), filtered to the free vertices.
-    {
-      ScopedTimer t(rep.times, Stage::hessian);
-      trial_.x = x0_ + d_;
-      energy.add_hessian(trial_, p.buffer, prm_.hessian);
-      contact.add_hessian(trial_, p.buffer);
-      p.plan.gather(p.buffer, p.matrix);
-      p.matrix.scale(dt2);
-      p.matrix.add_diagonal(mt_);
-      p.matrix.filter_rows(p.fixed, 1.0);
-    }
-    {
-      ScopedTimer t(rep.times, Stage::linear_setup);
-      Status st = Status::success;
-      if (!p.pattern_analyzed) {
-        st = linear.analyze_pattern(p.matrix);
-        p.pattern_analyzed = st == Status::success;
+    // K = M~ + dt^2 (H + contact terms), filtered to the free vertices. The adaptive choice
+    // keeps Newton's quadratic convergence where K is positive definite and projects only
+    // the iterations where the exact K is indefinite (or gives no descent direction).
+    HessianMode mode = prm_.hessian == HessianChoice::projected ? HessianMode::projected : HessianMode::exact;
+    double slope = 0;
+    for (;;) {
+      {
+        ScopedTimer t(rep.times, Stage::hessian);
+        trial_.x = x0_ + d_;
+        energy.add_hessian(trial_, p.buffer, mode);
+        contact.add_hessian(trial_, p.buffer);
+        p.plan.gather(p.buffer, p.matrix);
+        p.matrix.scale(dt2);
+        p.matrix.add_diagonal(mt_);
+        p.matrix.filter_rows(p.fixed, 1.0);
       }
-      if (st == Status::success) st = linear.factorize(p.matrix);
-      if (st != Status::success) return fail("linear_setup", st, "the linear solver could not set up the Newton matrix");
+      const bool can_retry = prm_.hessian == HessianChoice::adaptive && mode == HessianMode::exact;
+      Status st = Status::success;
+      {
+        ScopedTimer t(rep.times, Stage::linear_setup);
+        if (!p.pattern_analyzed) {
+          st = linear.analyze_pattern(p.matrix);
+          p.pattern_analyzed = st == Status::success;
+        }
+        if (st == Status::success) st = linear.factorize(p.matrix);
+      }
+      if (st != Status::success) {
+        if (can_retry) {
+          mode = HessianMode::projected;
+          continue;
+        }
+        return fail("linear_setup", st, "the linear solver could not set up the Newton matrix");
+      }
+      rhs_ = -f_;
+      dir_.setZero(3 * n);
+      LinearReport lr;
+      {
+        ScopedTimer t(rep.times, Stage::linear_solve);
+        lr = linear.solve(rhs_, dir_);
+      }
+      rep.linear.accumulate(lr);
+      rec.linear_iterations += lr.iterations;
+      s.zero_constrained(dir_);
+      slope = f_.dot(dir_);
+      if (can_retry && (lr.indefinite || lr.status != Status::success || !(slope < 0))) {
+        mode = HessianMode::projected;
+        continue;
+      }
+      if (lr.status != Status::success) return fail("linear_solve", lr.status, lr.message);
+      break;
     }
-    rhs_ = -f_;
-    dir_.setZero(3 * n);
-    LinearReport lr;
-    {
-      ScopedTimer t(rep.times, Stage::linear_solve);
-      lr = linear.solve(rhs_, dir_);
-    }
-    rep.linear.accumulate(lr);
-    rec.linear_iterations = lr.iterations;
-    if (lr.status != Status::success) return fail("linear_solve", lr.status, lr.message);
-    s.zero_constrained(dir_);
-    double slope = f_.dot(dir_);
+    rec.projected = mode == HessianMode::projected;
     if (!(slope < 0)) {
       // Not a descent direction (indefinite K with the exact Hessian): fall back to the
       // scaled steepest descent -M~^-1 f, which always descends.

@@ -66,6 +66,7 @@ LinearReport Direct::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   r.setup_seconds = setup_seconds_;
   setup_seconds_ = 0;
   r.negative_pivots = negative_pivots_;
+  r.indefinite = negative_pivots_ > 0;
   if (!factorized_) {
     r.status = Status::numerical_issue;
     r.message = "LDL^T factorisation failed: the matrix is numerically singular or not finite";

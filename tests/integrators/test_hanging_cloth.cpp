@@ -18,7 +18,7 @@ TEST_SUITE("integrators") {
   // The demo scene, coarser and more strongly damped so it settles within the test budget.
   TEST_CASE("hanging cloth: reaches static equilibrium with pinned corners fixed and a physical sag") {
     for (const char* combo : {"cloth_ip_direct", "cloth_tan_ip_direct"}) {
-      CAPTURE(combo);
+      CAPTURE(std::string(combo));
       const Scene scene = load_scene(scene_path("hanging_cloth.json"),
                                      {"cloths.0.mesh.resolution=[11,11]", "time.dt=0.020833333333333332", "damping.mass=2.0",
                                       std::string("combo=") + combo});
@@ -67,7 +67,7 @@ TEST_SUITE("integrators") {
         max_strain = std::max(max_strain, std::abs(l / l0 - 1));
       }
       CHECK(max_strain < 0.01);
-      MESSAGE(combo << ": " << steps << " steps, " << newton_total << " Newton iterations, sag " << -lowest
+      MESSAGE(std::string(combo) << ": " << steps << " steps, " << newton_total << " Newton iterations, sag " << -lowest
                     << " m, max strain " << max_strain << ", |residual|/weight " << residual.norm() / weight);
     }
   }
