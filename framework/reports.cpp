@@ -58,7 +58,7 @@ Json to_json(const NewtonReport& r, bool with_history) {
       h.push_back({{"merit", num(it.merit)}, {"residual", num(it.residual)}, {"slope", num(it.directional_derivative)},
                    {"step_length", num(it.step_length)}, {"step_norm", num(it.step_norm)},
                    {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations},
-                   {"projected", it.projected}});
+                   {"projected", it.projected}, {"shift", it.shift}});
     j["history"] = h;
   }
   return j;

@@ -129,6 +129,9 @@ class Simulator {
   }
 
   const State& state() const { return state_; }
+  /// Writable state, e.g. to set initial conditions before the first step. Topology and
+  /// which vertices are free must not change.
+  State& state() { return state_; }
   const Scene& scene() const { return scene_; }
   const Params& params() const { return prm_; }
   const Energy& energy_model() const { return energy_; }

@@ -46,6 +46,7 @@ struct NewtonIteration {
   int line_search_evaluations = 0;
   int linear_iterations = 0;
   bool projected = false;             ///< the direction used the PSD-projected Hessian
+  double shift = 0;                   ///< tau of the shifted matrix K + tau M~ (0: unshifted)
 };
 
 struct NewtonReport {

@@ -26,7 +26,8 @@ namespace weft::integrators {
 
 /// Which Hessian the Newton directions use.
 enum class HessianChoice {
-  adaptive,   ///< exact while K = M + dt^2 H is positive definite, else per-element PSD projection
+  adaptive,   ///< exact while K = M~ + dt^2 H is positive definite, else K + tau M~ with the
+              ///< smallest tau in {min_shift, 10 min_shift, ..., max_shift} that is, else projection
   exact,      ///< always exact (falls back to -M^-1 f when the direction does not descend)
   projected,  ///< always per-element PSD projection
 };
@@ -44,13 +45,15 @@ class IncrementalPotential {
   static constexpr bool minimizes_potential = true;
 
   struct Params {
-    int max_iterations = 50;            ///< Newton iterations per step
+    int max_iterations = 100;           ///< Newton iterations per step
     double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
     double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
     HessianChoice hessian = HessianChoice::adaptive;
     LineSearchKind line_search = LineSearchKind::backtracking;
     LineSearchParams search;
     InitialGuess initial_guess = InitialGuess::inertial;
+    double min_shift = 1e-4;            ///< adaptive: first shift tried, relative to the mass
+    double max_shift = 1e2;             ///< adaptive: beyond this, project per element instead
     template <class V>
     void visit(V& v) {
       v.field("max_iterations", max_iterations, {Unit::none, Range::closed(1, 10000), "Newton iterations per step before failing"});
@@ -59,15 +62,18 @@ class IncrementalPotential {
       v.field("length_tolerance", length_tolerance,
               {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
       v.choice("hessian", hessian, hessian_choice_names,
-               "adaptive: exact while K is positive definite, else per-element PSD projection");
+               "adaptive: exact while K is positive definite, else shifted K + tau M~, else per-element projection");
       v.choice("line_search", line_search, line_search_names, "globalisation on E_inc");
       v.section("search", search);
       v.choice("initial_guess", initial_guess, initial_guess_names, "start of the Newton iteration");
+      v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
+      v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
     }
     static Checker validate(const Params& p) {
       Checker c("integrator");
       c.require(p.relative_tolerance > 0 || p.length_tolerance > 0, "relative_tolerance", p.relative_tolerance,
                 "> 0 when length_tolerance = 0 (else the iteration can never stop)");
+      c.require(p.max_shift >= p.min_shift, "max_shift", p.max_shift, fmt::format(">= min_shift = {}", p.min_shift));
       return c;
     }
   };
@@ -79,6 +85,7 @@ class IncrementalPotential {
 
  private:
   Params prm_;
+  double shift_hint_ = 0;  // last Levenberg-Marquardt shift that gave a positive definite K
   Eigen::VectorXd x0_, xt_, d_, f_, g_, dir_, mt_, mv_, rhs_;
   State trial_;
 };
@@ -171,9 +178,11 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
     // keeps Newton's quadratic convergence where K is positive definite and projects only
     // the iterations where the exact K is indefinite (or gives no descent direction).
     HessianMode mode = prm_.hessian == HessianChoice::projected ? HessianMode::projected : HessianMode::exact;
+    double shift = 0, applied_shift = 0;  // K + shift * M~ (Levenberg-Marquardt in the mass metric)
+    bool assembled = false;
     double slope = 0;
     for (;;) {
-      {
+      if (!assembled) {
         ScopedTimer t(rep.times, Stage::hessian);
         trial_.x = x0_ + d_;
         energy.add_hessian(trial_, p.buffer, mode);
@@ -182,8 +191,13 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
         p.matrix.scale(dt2);
         p.matrix.add_diagonal(mt_);
         p.matrix.filter_rows(p.fixed, 1.0);
+        assembled = true;
+        applied_shift = 0;
       }
-      const bool can_retry = prm_.hessian == HessianChoice::adaptive && mode == HessianMode::exact;
+      if (shift > applied_shift) {
+        p.matrix.add_diagonal((shift - applied_shift) * mt_);
+        applied_shift = shift;
+      }
       Status st = Status::success;
       {
         ScopedTimer t(rep.times, Stage::linear_setup);
@@ -193,31 +207,39 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
         }
         if (st == Status::success) st = linear.factorize(p.matrix);
       }
-      if (st != Status::success) {
-        if (can_retry) {
-          mode = HessianMode::projected;
-          continue;
-        }
-        return fail("linear_setup", st, "the linear solver could not set up the Newton matrix");
-      }
-      rhs_ = -f_;
-      dir_.setZero(3 * n);
       LinearReport lr;
-      {
-        ScopedTimer t(rep.times, Stage::linear_solve);
-        lr = linear.solve(rhs_, dir_);
+      if (st == Status::success) {
+        rhs_ = -f_;
+        dir_.setZero(3 * n);
+        {
+          ScopedTimer t(rep.times, Stage::linear_solve);
+          lr = linear.solve(rhs_, dir_);
+        }
+        rep.linear.accumulate(lr);
+        rec.linear_iterations += lr.iterations;
+        s.zero_constrained(dir_);
+        slope = f_.dot(dir_);
+      } else {
+        lr.status = st;
+        lr.message = "the linear solver could not set up the Newton matrix";
       }
-      rep.linear.accumulate(lr);
-      rec.linear_iterations += lr.iterations;
-      s.zero_constrained(dir_);
-      slope = f_.dot(dir_);
-      if (can_retry && (lr.indefinite || lr.status != Status::success || !(slope < 0))) {
+      const bool usable = lr.status == Status::success && !lr.indefinite && slope < 0;
+      if (usable || prm_.hessian != HessianChoice::adaptive || mode != HessianMode::exact) {
+        if (lr.status != Status::success) return fail(st != Status::success ? "linear_setup" : "linear_solve", lr.status, lr.message);
+        break;
+      }
+      // Adaptive: the exact K is indefinite here. Shift it towards the mass matrix, the
+      // smallest shift first (the last one that worked in this step, divided by 10), and
+      // fall back to the per-element projection only if even a large shift fails.
+      shift = shift == 0 ? std::max(prm_.min_shift, shift_hint_ / 10) : 10 * shift;
+      if (shift > prm_.max_shift) {
         mode = HessianMode::projected;
-        continue;
+        shift = 0;
+        assembled = false;
       }
-      if (lr.status != Status::success) return fail("linear_solve", lr.status, lr.message);
-      break;
     }
+    if (shift > 0) shift_hint_ = shift;
+    rec.shift = shift;
     rec.projected = mode == HessianMode::projected;
     if (!(slope < 0)) {
       // Not a descent direction (indefinite K with the exact Hessian): fall back to the
