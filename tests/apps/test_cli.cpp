@@ -105,3 +105,38 @@ TEST_SUITE("apps") {
     CHECK_MESSAGE(doc == r.output, "docs/scene-reference.md is stale: regenerate it with `weft keys > docs/scene-reference.md`");
   }
 }
+
+TEST_SUITE("apps") {
+  TEST_CASE("cli: list --scene says which combinations apply and why others do not") {
+    json s = small_scene();
+    s["obstacles"] = json::array({{{"shape", "plane"}, {"center", {0, 0, -1}}}});
+    const auto dir = temp_dir("list_scene");
+    const std::string path = write_file(dir / "scene.json", s.dump());
+    const Result r = run_weft("list --scene " + path);
+    CAPTURE(r.output);
+    CHECK(r.code == 0);
+    CHECK(r.output.find("no, the scene has 1 obstacle(s)") != std::string::npos);
+    const Result ok = run_weft("list --scene " + write_file(dir / "plain.json", small_scene().dump()));
+    CHECK(ok.output.find("applies to") != std::string::npos);
+    CHECK(ok.output.find(": yes") != std::string::npos);
+  }
+}
+
+TEST_SUITE("slow") {
+  TEST_CASE("demo: the default hanging cloth runs to the end at full resolution and comes to rest") {
+    const auto dir = temp_dir("demo_full");
+    const Result r = run_weft(fmt::format("run {}/scenes/hanging_cloth.json --out {} --quiet", WEFT_SOURCE_DIR, dir.string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    const json summary = json::parse(slurp(dir / "summary.json"));
+    CHECK(summary["status"] == "completed");
+    const auto stats = read_jsonl(dir / "stats.jsonl");
+    REQUIRE(stats.size() == 960u);
+    double ke_peak = 0;
+    for (const auto& s : stats) ke_peak = std::max(ke_peak, s["energy"]["kinetic"].get<double>());
+    // The swing's kinetic energy is dissipated by the end: drag 1/s alone leaves e^-3 of it
+    // 3 s after the peak, and backward Euler dissipates more.
+    CHECK(stats.back()["energy"]["kinetic"].get<double>() < 0.05 * ke_peak);
+    CHECK(summary["newton_iterations"]["max"].get<int>() < 100);
+  }
+}
