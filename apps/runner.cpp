@@ -175,11 +175,8 @@ int run_scene(const RunOptions& opt) {
   const auto wall_start = std::chrono::steady_clock::now();
   // 1. Validate everything before touching the output directory.
   std::unique_ptr<AnySimulator> sim;
-  Scene scene_copy;
   try {
-    Scene scene = load_scene(opt.scene, opt.overrides);
-    sim = make_simulator(scene);
-    scene_copy = std::move(scene);
+    sim = make_simulator(load_scene(opt.scene, opt.overrides));
   } catch (const ConfigError& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return exit_config;
