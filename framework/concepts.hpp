@@ -51,6 +51,11 @@ concept EnergyModel = Component<M> && std::constructible_from<M, const Scene&, c
       { cm.admissible(s) } -> std::same_as<bool>;  // false: the state is outside the model's domain
     };
 
+/// Optional hook of an energy model: called once before each step with the state at its
+/// start and the time at its end, e.g. to update an animated rest state (spec 01 §5).
+template <class M>
+concept HasBeginStep = requires(M& m, const State& s, double t_end) { m.begin_step(s, t_end); };
+
 /// Contact handling within and after the implicit solve.
 ///   construction: `C(const Scene&, const C::Params&)`.
 ///   `provides_potential`: contact acts through potential terms inside the solve (so an

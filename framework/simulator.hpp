@@ -101,6 +101,7 @@ class Simulator {
     rep.step = ++steps_;
     rep.dt = dt;
     scene_.constrained_positions(state_.t + dt, state_, target_);
+    if constexpr (HasBeginStep<Energy>) energy_.begin_step(state_, state_.t + dt);
     {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact = contact_.begin_step(state_, dt);

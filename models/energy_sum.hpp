@@ -67,6 +67,11 @@ class EnergySum {
     return std::apply([&](const auto&... t) { return (true && ... && t.admissible(s)); }, terms_);
   }
 
+  /// Forwards the optional begin_step hook (animated rest states) to the terms that have it.
+  void begin_step(const State& s, double t_end) {
+    std::apply([&](auto&... t) { (begin_term(t, s, t_end), ...); }, terms_);
+  }
+
   /// Term I (e.g. for statistics or tests).
   template <std::size_t I>
   const auto& term() const {
@@ -75,6 +80,10 @@ class EnergySum {
   static constexpr std::size_t size() { return sizeof...(Terms); }
 
  private:
+  template <class Term>
+  static void begin_term(Term& t, const State& s, double t_end) {
+    if constexpr (HasBeginStep<Term>) t.begin_step(s, t_end);
+  }
   template <class Term>
   static void validate_term(const typename Term::Params& p, Checker& c) {
     if constexpr (requires { Term::validate(p); }) c.merge(Term::validate(p));
