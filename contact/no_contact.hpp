@@ -21,7 +21,7 @@ class NoContact {
   ContactReport begin_step(const State&, double) { return {}; }
   double energy(const State&) const { return 0.0; }
   void add_gradient(const State&, Eigen::VectorXd&) const {}
-  void add_hessian(const State&, ElementBuffer&) const {}
+  void add_hessian(const State&, ElementBuffer&, HessianMode) const {}
   ContactReport end_step(State&, double) { return {}; }
 };
 

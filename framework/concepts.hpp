@@ -63,13 +63,13 @@ concept HasBeginStep = requires(M& m, const State& s, double t_end) { m.begin_st
 template <class C>
 concept ContactStrategy = Component<C> && std::constructible_from<C, const Scene&, const typename C::Params&> &&
     requires(C& c, const C& cc, const State& s, State& out, Eigen::VectorXd& g, ElementBuffer& buf,
-             AssemblyPlan& plan, double dt) {
+             AssemblyPlan& plan, double dt, HessianMode mode) {
       { C::provides_potential } -> std::convertible_to<bool>;
       c.declare(plan);                                       // stencils of potential terms (may be none)
       { c.begin_step(s, dt) } -> std::same_as<ContactReport>;  // detection; caches the active set
       { cc.energy(s) } -> std::same_as<double>;              // potential terms of the active set
       cc.add_gradient(s, g);
-      cc.add_hessian(s, buf);
+      cc.add_hessian(s, buf, mode);                          // writes its element blocks (exact or PSD)
       { c.end_step(out, dt) } -> std::same_as<ContactReport>;  // post-solve response (impulses, ...)
     };
 

@@ -186,7 +186,7 @@ StepReport IncrementalPotential::step(const E& energy, C& contact, L& linear, St
         ScopedTimer t(rep.times, Stage::hessian);
         trial_.x = x0_ + d_;
         energy.add_hessian(trial_, p.buffer, mode);
-        contact.add_hessian(trial_, p.buffer);
+        contact.add_hessian(trial_, p.buffer, mode);
         p.plan.gather(p.buffer, p.matrix);
         p.matrix.scale(dt2);
         p.matrix.add_diagonal(mt_);

@@ -4,6 +4,7 @@
 /// instantiated once, in its own translation unit under policies/combos/, and declared
 /// `extern template` here so no other file instantiates it again.
 #include "contact/no_contact.hpp"
+#include "contact/obstacle_penalty.hpp"
 #include "framework/simulator.hpp"
 #include "integrators/incremental_potential.hpp"
 #include "linear/direct.hpp"
@@ -23,8 +24,10 @@ using ClothTan = models::EnergySum<models::StvkMembrane<models::Isotropic>, mode
 
 using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 
 }  // namespace weft

@@ -12,7 +12,9 @@
   X(cloth_ip_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "none", "direct", "cloth without contact: backward Euler as minimisation, sparse LDL^T")         \
   X(cloth_tan_ip_direct, "membrane(stvk, isotropic) + bending(tan) + gravity", "incremental_potential", \
-    "none", "direct", "as cloth_ip_direct with the 2 tan(theta/2) bending energy (thesis Eq. 5.8)")
+    "none", "direct", "as cloth_ip_direct with the 2 tan(theta/2) bending energy (thesis Eq. 5.8)")  \
+  X(cloth_ip_penalty_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
+    "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)")
 
 namespace weft {
 
@@ -37,6 +39,8 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
   if (combo.contact == "none" && !scene.spec.obstacles.empty())
     return fmt::format("the scene has {} obstacle(s) but contact = none would let the cloth pass through them",
                        scene.spec.obstacles.size());
+  if (combo.contact == "obstacle_penalty" && scene.spec.obstacles.empty())
+    return "the scene has no obstacles: contact = obstacle_penalty would pay for a contact stage it does not use";
   return {};
 }
 
