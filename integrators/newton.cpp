@@ -1,0 +1,122 @@
+#include "integrators/newton.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace weft::integrators {
+
+NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
+                       double& shift_hint, NewtonReport& nr, LinearReport& linear, StageTimes& times) {
+  const Eigen::Index n = d.size();
+  Eigen::VectorXd f(n), dir(n), rhs(n), trial(n);
+  auto fail = [&](std::string stage, Status st, std::string msg) {
+    nr.status = st;
+    nr.message = msg;
+    return NewtonFailure{st, std::move(stage), std::move(msg)};
+  };
+
+  double e = problem.potential(d);
+  if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
+  problem.gradient(d, f);
+  double r = problem.norm(f);
+  nr.initial_residual = r;
+  nr.tolerance = prm.relative_tolerance * r + absolute_tolerance;
+  if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient at the start of the step");
+
+  for (int it = 0;; ++it) {
+    nr.final_residual = r;
+    if (r <= nr.tolerance) {
+      nr.stop_reason = "residual";
+      break;
+    }
+    if (it == prm.max_iterations) {
+      nr.stop_reason = "max_iterations";
+      return fail("newton", Status::no_convergence,
+                  fmt::format("Newton did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, initial {:.3e})",
+                              nr.tolerance, it, r, nr.initial_residual));
+    }
+    NewtonIteration rec;
+    rec.merit = e;
+    rec.residual = r;
+
+    // Direction. The adaptive choice keeps Newton's quadratic convergence where K is
+    // positive definite; where the exact K is indefinite it shifts K towards the mass
+    // matrix (the smallest shift first: the last one that worked, divided by 10), and
+    // projects per element only if even a large shift fails.
+    HessianMode mode = prm.hessian == HessianChoice::projected ? HessianMode::projected : HessianMode::exact;
+    double shift = 0, slope = 0;
+    for (;;) {
+      const Status st = problem.prepare(d, mode, shift);
+      LinearReport lr;
+      if (st == Status::success) {
+        rhs = -f;
+        dir.setZero();
+        lr = problem.solve(rhs, dir);
+        linear.accumulate(lr);
+        rec.linear_iterations += lr.iterations;
+        slope = f.dot(dir);
+      } else {
+        lr.status = st;
+        lr.message = "the linear solver could not set up the Newton matrix";
+      }
+      const bool usable = lr.status == Status::success && !lr.indefinite && slope < 0;
+      if (usable || prm.hessian != HessianChoice::adaptive || mode != HessianMode::exact) {
+        if (lr.status != Status::success) return fail(st != Status::success ? "linear_setup" : "linear_solve", lr.status, lr.message);
+        break;
+      }
+      shift = shift == 0 ? std::max(prm.min_shift, shift_hint / 10) : 10 * shift;
+      if (shift > prm.max_shift) {
+        mode = HessianMode::projected;
+        shift = 0;
+      }
+    }
+    if (shift > 0) shift_hint = shift;
+    rec.shift = shift;
+    rec.projected = mode == HessianMode::projected;
+    if (!(slope < 0)) {
+      // Not a descent direction (indefinite K with the exact Hessian): fall back to the
+      // scaled steepest descent -M~^-1 f, which always descends.
+      problem.mass_inverse(f, dir);
+      dir = -dir;
+      slope = f.dot(dir);
+    }
+    rec.directional_derivative = slope;
+
+    // Line search on E.
+    LineSearchResult ls;
+    {
+      ScopedTimer t(times, Stage::line_search);
+      if (prm.line_search == LineSearchKind::full_step) {
+        trial = d + dir;
+        ls = {true, 1.0, problem.potential(trial), 1};
+      } else {
+        ls = backtracking([&](double step) { trial = d + step * dir; return problem.potential(trial); }, e, slope, prm.search);
+      }
+    }
+    rec.line_search_evaluations = ls.evaluations;
+    nr.iterations = it + 1;
+    if (!ls.accepted) {
+      nr.history.push_back(rec);
+      // Below round-off the decrease of E cannot be resolved: converged to precision.
+      if (std::abs(slope) < 1e-12 * (std::abs(e) + problem.merit_scale()) + 1e-300) {
+        nr.stop_reason = "precision";
+        break;
+      }
+      return fail("line_search", Status::numerical_issue,
+                  fmt::format("line search found no decrease of E_inc in {} trials (slope {:.3e}, ||f|| {:.3e})",
+                              ls.evaluations, slope, r));
+    }
+    rec.step_length = ls.step;
+    rec.step_norm = ls.step * dir.cwiseAbs().maxCoeff();
+    d += ls.step * dir;
+    e = ls.value;
+    problem.gradient(d, f);
+    r = problem.norm(f);
+    nr.history.push_back(rec);
+    if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient after the Newton update");
+  }
+  nr.status = Status::success;
+  return {};
+}
+
+}  // namespace weft::integrators

@@ -1,0 +1,101 @@
+#pragma once
+/// \file newton.hpp
+/// The Newton core shared by the integrators: the nonlinear system of one time step is
+/// seen through `NewtonProblem` (a handful of calls per iteration, never per element), so
+/// the loop, the Hessian fallbacks and the line searches are compiled once, in newton.cpp,
+/// and serve every simulator as well as small test problems (the 1D example of spec 02
+/// §5.3).
+#include <Eigen/Core>
+
+#include <array>
+#include <string>
+#include <string_view>
+
+#include "framework/concepts.hpp"
+#include "framework/params.hpp"
+#include "framework/status.hpp"
+#include "integrators/line_search.hpp"
+
+namespace weft::integrators {
+
+/// The nonlinear system of one step in the unknown d (displacement over the step).
+/// Merit for minimisation: E(d); its gradient f(d), zero on constrained entries;
+/// the Newton matrix K(d) (+ shift * M~), set up by `prepare` and then applied or solved.
+class NewtonProblem {
+ public:
+  virtual ~NewtonProblem() = default;
+  /// E_inc(d); +infinity outside the model's domain.
+  virtual double potential(const Eigen::VectorXd& d) = 0;
+  /// f = grad E_inc(d); zero on constrained entries.
+  virtual void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) = 0;
+  /// ||f||_{M~^-1}.
+  virtual double norm(const Eigen::VectorXd& f) const = 0;
+  /// Assemble K(d) (exact or projected Hessian), add shift * M~, and set up the linear
+  /// solver for it.
+  virtual Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) = 0;
+  /// Solve K p = rhs with the prepared matrix; p is zero on constrained entries.
+  virtual LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) = 0;
+  /// out = M~^-1 f (zero on constrained entries): the scaled steepest-descent direction is -out.
+  virtual void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const = 0;
+  /// Magnitude of the terms summed in E (their round-off bounds how finely E resolves).
+  virtual double merit_scale() const = 0;
+};
+
+/// Which Hessian the Newton directions use.
+enum class HessianChoice {
+  adaptive,   ///< exact while K = M~ + dt^2 H is positive definite, else K + tau M~ with the
+              ///< smallest tau in {min_shift, 10 min_shift, ..., max_shift} that is, else projection
+  exact,      ///< always exact (falls back to -M^-1 f when the direction does not descend)
+  projected,  ///< always per-element PSD projection
+};
+inline constexpr std::array<std::string_view, 3> hessian_choice_names = {"adaptive", "exact", "projected"};
+
+/// Parameters of the Newton iteration (the flat keys of an integrator's section).
+struct NewtonParams {
+  int max_iterations = 100;           ///< Newton iterations per step
+  double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
+  double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
+  HessianChoice hessian = HessianChoice::adaptive;
+  double min_shift = 1e-4;            ///< adaptive: first shift tried, relative to the mass
+  double max_shift = 1e2;             ///< adaptive: beyond this, project per element instead
+  LineSearchKind line_search = LineSearchKind::backtracking;
+  LineSearchParams search;
+
+  template <class V>
+  void visit_newton(V& v) {
+    v.field("max_iterations", max_iterations, {Unit::none, Range::closed(1, 10000), "Newton iterations per step before failing"});
+    v.field("relative_tolerance", relative_tolerance,
+            {Unit::none, Range::closed(0, 1), "stop when ||f||_M^-1 <= relative_tolerance ||f(d0)||_M^-1 + absolute"});
+    v.field("length_tolerance", length_tolerance,
+            {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
+    v.choice("hessian", hessian, hessian_choice_names,
+             "adaptive: exact while K is positive definite, else shifted K + tau M~, else per-element projection");
+    v.choice("line_search", line_search, line_search_names, "globalisation on E_inc");
+    v.section("search", search);
+    v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
+    v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
+  }
+  static Checker validate_newton(const NewtonParams& p) {
+    Checker c("integrator");
+    c.require(p.relative_tolerance > 0 || p.length_tolerance > 0, "relative_tolerance", p.relative_tolerance,
+              "> 0 when length_tolerance = 0 (else the iteration can never stop)");
+    c.require(p.max_shift >= p.min_shift, "max_shift", p.max_shift, fmt::format(">= min_shift = {}", p.min_shift));
+    return c;
+  }
+};
+
+/// Where a failed Newton iteration stopped.
+struct NewtonFailure {
+  Status status = Status::success;
+  std::string stage;    ///< "newton", "line_search", "linear_setup", "linear_solve", "energy"
+  std::string message;
+};
+
+/// Minimise E from d (updated in place) until ||f||_{M~^-1} <= tolerance: Newton with the
+/// Hessian choice of `prm` and a line search on E. `shift_hint` carries the last successful
+/// Levenberg-Marquardt shift between calls. Fills `report` (history, residuals) and adds
+/// the linear solves to `linear` and the line-search time to `times`.
+NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
+                       double& shift_hint, NewtonReport& report, LinearReport& linear, StageTimes& times);
+
+}  // namespace weft::integrators
