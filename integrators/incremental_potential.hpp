@@ -16,12 +16,6 @@
 
 namespace weft::integrators {
 
-enum class InitialGuess {
-  inertial,  ///< d0 = dt v_k (free vertices)
-  zero,      ///< d0 = 0
-};
-inline constexpr std::array<std::string_view, 2> initial_guess_names = {"inertial", "zero"};
-
 class IncrementalPotential {
  public:
   static constexpr std::string_view name = "incremental_potential";
@@ -42,32 +36,14 @@ class IncrementalPotential {
   template <class E, class C, class L>
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
     StepReport rep;
-    State& s = p.state;
-    const int n = s.num_vertices();
     StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
-    d_.resize(3 * n);
-    for (int i = 0; i < n; ++i)
-      d_.segment<3>(3 * i) = p.fixed[i] ? Eigen::Vector3d(p.target.segment<3>(3 * i) - s.x.segment<3>(3 * i))
-                             : prm_.initial_guess == InitialGuess::inertial ? Eigen::Vector3d(p.dt * s.v.segment<3>(3 * i))
-                                                                           : Eigen::Vector3d::Zero();
-    if (!std::isfinite(system.potential(d_))) {
-      // The inertial guess may leave the model's domain; start from rest instead.
-      for (int i = 0; i < n; ++i)
-        if (!p.fixed[i]) d_.segment<3>(3 * i).setZero();
-    }
+    initial_displacement(p, prm_.initial_guess, d_);
+    // The inertial guess may leave the model's domain; start from rest instead.
+    if (!std::isfinite(system.potential(d_))) initial_displacement(p, InitialGuess::zero, d_);
     const NewtonFailure f = minimize(system, d_, prm_.length_tolerance * std::sqrt(system.free_mass()), prm_,
                                      shift_hint_, rep.newton, rep.linear, rep.times);
-    if (f.status != Status::success) {
-      rep.status = f.status;
-      rep.failed_stage = f.stage;
-      rep.message = f.message;
-      return rep;
-    }
-    // Commit: q_{k+1} = q_k + d, v_{k+1} = d / dt.
-    s.x += d_;
-    s.v = d_ / p.dt;
-    rep.status = Status::success;
-    return rep;
+    if (f.status == Status::success) commit(p, d_);
+    return finish(rep, f);
   }
 
  private:

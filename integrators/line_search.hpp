@@ -21,11 +21,13 @@ struct LineSearchParams {
   double c1 = 1e-4;          ///< Armijo constant
   double shrink = 0.5;       ///< upper bound of the step reduction factor per trial
   int max_evaluations = 40;  ///< trials before giving up
+  bool interpolate = true;   ///< quadratic interpolation of the next trial; false: plain s *= shrink
   template <class V>
   void visit(V& v) {
     v.field("c1", c1, {Unit::none, Range::open(0, 0.5), "Armijo sufficient-decrease constant"});
     v.field("shrink", shrink, {Unit::none, Range::open(0, 1), "largest step reduction factor per backtracking trial"});
     v.field("max_evaluations", max_evaluations, {Unit::none, Range::closed(1, 200), "trial steps before the search fails"});
+    v.field("interpolate", interpolate, {Unit::none, Range::any(), "next trial from a quadratic fit (else s *= shrink)"});
   }
 };
 
@@ -52,7 +54,9 @@ LineSearchResult backtracking(Phi&& phi, double phi0, double slope, const LineSe
       return r;
     }
     double next = 0.1 * s;
-    if (std::isfinite(value)) {
+    if (!prm.interpolate) {
+      next = prm.shrink * s;
+    } else if (std::isfinite(value)) {
       const double denom = 2.0 * (value - phi0 - slope * s);
       if (denom > 0) next = -slope * s * s / denom;
       next = std::clamp(next, 0.1 * s, prm.shrink * s);

@@ -35,6 +35,8 @@ class NewtonProblem {
   virtual Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) = 0;
   /// Solve K p = rhs with the prepared matrix; p is zero on constrained entries.
   virtual LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) = 0;
+  /// y = K x with the prepared matrix.
+  virtual void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const = 0;
   /// out = M~^-1 f (zero on constrained entries): the scaled steepest-descent direction is -out.
   virtual void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const = 0;
   /// Magnitude of the terms summed in E (their round-off bounds how finely E resolves).
@@ -45,7 +47,8 @@ class NewtonProblem {
 enum class HessianChoice {
   adaptive,   ///< exact while K = M~ + dt^2 H is positive definite, else K + tau M~ with the
               ///< smallest tau in {min_shift, 10 min_shift, ..., max_shift} that is, else projection
-  exact,      ///< always exact (falls back to -M^-1 f when the direction does not descend)
+  exact,      ///< always exact; an ascent direction is reversed (spec 02 §16 E1), a zero-slope one
+              ///< replaced by -M~^-1 f
   projected,  ///< always per-element PSD projection
 };
 inline constexpr std::array<std::string_view, 3> hessian_choice_names = {"adaptive", "exact", "projected"};
@@ -97,5 +100,18 @@ struct NewtonFailure {
 /// the linear solves to `linear` and the line-search time to `times`.
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& report, LinearReport& linear, StageTimes& times);
+
+/// One Newton step from d with a full step (the linearly implicit method when d = 0,
+/// spec 02 §4 "LIE"); the direction uses the Hessian choice of `prm`. Never fails for lack
+/// of convergence: the residual after the step is reported, not enforced.
+NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const NewtonParams& prm, double& shift_hint,
+                              NewtonReport& report, LinearReport& linear);
+
+/// Root finding on f(d) = 0 (spec 02 §4): Newton with the exact Jacobian K (shifted by
+/// tau M~ only where it is singular) and backtracking on the residual merit 1/2 ||f||^2
+/// (§6.3; each trial costs a gradient, no energy). The comparison policy of the thesis.
+/// `prm.hessian` and `prm.line_search` apply (full_step = pure Newton).
+NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
+                        NewtonReport& report, LinearReport& linear, StageTimes& times);
 
 }  // namespace weft::integrators

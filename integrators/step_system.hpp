@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string_view>
 
 #include "framework/simulator.hpp"
 #include "integrators/newton.hpp"
@@ -86,6 +87,7 @@ class StepSystem final : public NewtonProblem {
     p_.state.zero_constrained(x);
     return r;
   }
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { p_.matrix.multiply(x, y); }
   void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override {
     out = f.cwiseQuotient(mt_);
     p_.state.zero_constrained(out);
@@ -102,5 +104,35 @@ class StepSystem final : public NewtonProblem {
   Eigen::VectorXd x0_, mt_, mv_, g_;
   double dt2_ = 0, V0_ = 0, free_mass_ = 0;
 };
+
+enum class InitialGuess {
+  inertial,  ///< d0 = dt v_k (free vertices)
+  zero,      ///< d0 = 0
+};
+inline constexpr std::array<std::string_view, 2> initial_guess_names = {"inertial", "zero"};
+
+/// d0: the prescribed displacement on constrained vertices, the guess elsewhere.
+inline void initial_displacement(const StepProblem& p, InitialGuess guess, Eigen::VectorXd& d) {
+  const State& s = p.state;
+  d.resize(s.x.size());
+  for (int i = 0; i < s.num_vertices(); ++i)
+    d.segment<3>(3 * i) = p.fixed[i] ? Eigen::Vector3d(p.target.segment<3>(3 * i) - s.x.segment<3>(3 * i))
+                          : guess == InitialGuess::inertial ? Eigen::Vector3d(p.dt * s.v.segment<3>(3 * i))
+                                                            : Eigen::Vector3d::Zero();
+}
+
+/// q_{k+1} = q_k + d, v_{k+1} = d / dt (backward Euler).
+inline void commit(StepProblem& p, const Eigen::VectorXd& d) {
+  p.state.x += d;
+  p.state.v = d / p.dt;
+}
+
+/// The step report of a Newton outcome.
+inline StepReport& finish(StepReport& rep, const NewtonFailure& f) {
+  rep.status = f.status;
+  rep.failed_stage = f.stage;
+  rep.message = f.message;
+  return rep;
+}
 
 }  // namespace weft::integrators

@@ -1,0 +1,55 @@
+#pragma once
+/// \file linearly_implicit.hpp
+/// `LinearlyImplicit`: one Newton step of backward Euler from d = 0 (the Baraff-Witkin
+/// baseline, spec 02 §4 "LIE"): (M~ + dt^2 H(q_k)) d = dt M v_k - dt^2 grad V(q_k).
+/// No iteration and no line search; the residual left after the step is reported.
+#include <string_view>
+
+#include "framework/simulator.hpp"
+#include "integrators/newton.hpp"
+#include "integrators/step_system.hpp"
+
+namespace weft::integrators {
+
+class LinearlyImplicit {
+ public:
+  static constexpr std::string_view name = "linearly_implicit";
+  static constexpr bool minimizes_potential = false;
+
+  struct Params {
+    HessianChoice hessian = HessianChoice::adaptive;
+    double min_shift = 1e-4;
+    double max_shift = 1e2;
+    template <class V>
+    void visit(V& v) {
+      v.choice("hessian", hessian, hessian_choice_names,
+               "adaptive: exact while K is positive definite, else shifted K + tau M~, else per-element projection");
+      v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried"});
+      v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before projecting per element"});
+    }
+  };
+
+  explicit LinearlyImplicit(const Params& prm) : prm_(prm) {
+    newton_.hessian = prm.hessian;
+    newton_.min_shift = prm.min_shift;
+    newton_.max_shift = prm.max_shift;
+  }
+
+  template <class E, class C, class L>
+  StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
+    StepReport rep;
+    StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
+    initial_displacement(p, InitialGuess::zero, d_);
+    const NewtonFailure f = linearized_step(system, d_, newton_, shift_hint_, rep.newton, rep.linear);
+    if (f.status == Status::success) commit(p, d_);
+    return finish(rep, f);
+  }
+
+ private:
+  Params prm_;
+  NewtonParams newton_;
+  double shift_hint_ = 0;
+  Eigen::VectorXd d_;
+};
+
+}  // namespace weft::integrators
