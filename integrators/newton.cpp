@@ -93,7 +93,7 @@ NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const 
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& nr, LinearReport& linear, StageTimes& times) {
   const Eigen::Index n = d.size();
-  Eigen::VectorXd f(n), dir(n), trial(n);
+  Eigen::VectorXd f(n), ft(n), dir(n), trial(n);
   auto fail = [&](std::string stage, Status st, std::string msg) {
     nr.status = st;
     nr.message = msg;
@@ -137,11 +137,22 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     LineSearchResult ls;
     {
       ScopedTimer t(times, Stage::line_search);
-      if (prm.line_search == LineSearchKind::full_step) {
-        trial = d + dir;
-        ls = {true, 1.0, problem.potential(trial), 1};
-      } else {
-        ls = backtracking([&](double step) { trial = d + step * dir; return problem.potential(trial); }, e, slope, prm.search);
+      auto phi = [&](double step) {
+        trial = d + step * dir;
+        return problem.potential(trial);
+      };
+      // phi and phi' = f(d + s p)^T p: one energy and one gradient per trial.
+      auto phi_slope = [&](double step) {
+        const double value = phi(step);
+        if (!std::isfinite(value)) return std::pair<double, double>(value, value);
+        problem.gradient(trial, ft);
+        return std::pair<double, double>(value, ft.dot(dir));
+      };
+      switch (prm.line_search) {
+        case LineSearchKind::full_step: ls = {true, 1.0, phi(1.0), 1}; break;
+        case LineSearchKind::backtracking: ls = backtracking(phi, e, slope, prm.search); break;
+        case LineSearchKind::more_thuente: ls = more_thuente(phi_slope, e, slope, prm.search); break;
+        case LineSearchKind::hager_zhang: ls = hager_zhang(phi_slope, e, slope, prm.search); break;
       }
     }
     rec.line_search_evaluations = ls.evaluations;
