@@ -90,8 +90,157 @@ NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const 
   return {};
 }
 
+namespace {
+
+// Largest tau >= 0 with ||z + tau p||_M = radius.
+double to_boundary(NewtonProblem& problem, const Eigen::VectorXd& z, const Eigen::VectorXd& p, double radius) {
+  const double a = problem.mass_dot(p, p), b = 2 * problem.mass_dot(z, p), c = problem.mass_dot(z, z) - radius * radius;
+  const double disc = std::max(0.0, b * b - 4 * a * c);
+  return a > 0 ? (-b + std::sqrt(disc)) / (2 * a) : 0.0;
+}
+
+// Steihaug-Toint truncated CG on min f^T p + 1/2 p^T K p, ||p||_M <= radius, preconditioned
+// by M~ (so the CG iterates grow monotonically in the M-norm). Stops on the boundary, at
+// negative curvature (following it to the boundary), or when the model gradient is small.
+Eigen::VectorXd steihaug(NewtonProblem& problem, const Eigen::VectorXd& f, double radius, double rel_tol, int max_iter,
+                         int& iterations, bool& negative_curvature) {
+  const Eigen::Index n = f.size();
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(n), r = f, y(n), p(n), Kp(n);
+  problem.mass_inverse(r, y);
+  p = -y;
+  double ry = r.dot(y);
+  const double r0 = std::sqrt(std::max(ry, 0.0));
+  negative_curvature = false;
+  for (iterations = 0; iterations < max_iter; ++iterations) {
+    problem.multiply(p, Kp);
+    const double kappa = p.dot(Kp);
+    if (kappa <= 0) {
+      negative_curvature = true;
+      return z + to_boundary(problem, z, p, radius) * p;
+    }
+    const double alpha = ry / kappa;
+    const Eigen::VectorXd z_next = z + alpha * p;
+    if (problem.mass_dot(z_next, z_next) >= radius * radius) return z + to_boundary(problem, z, p, radius) * p;
+    z = z_next;
+    r += alpha * Kp;
+    problem.mass_inverse(r, y);
+    const double ry_next = r.dot(y);
+    if (std::sqrt(std::max(ry_next, 0.0)) <= rel_tol * r0) {
+      ++iterations;
+      break;
+    }
+    p = -y + (ry_next / ry) * p;
+    ry = ry_next;
+  }
+  return z;
+}
+
+}  // namespace
+
+NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance,
+                                    const NewtonParams& prm, NewtonReport& nr, LinearReport& linear) {
+  const Eigen::Index n = d.size();
+  Eigen::VectorXd f(n), p(n), Kp(n), trial(n), g(n);
+  auto fail = [&](std::string stage, Status st, std::string msg) {
+    nr.status = st;
+    nr.message = msg;
+    return NewtonFailure{st, std::move(stage), std::move(msg)};
+  };
+  double e = problem.potential(d);
+  if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
+  problem.gradient(d, f);
+  double r = problem.norm(f);
+  nr.initial_residual = r;
+  nr.tolerance = prm.relative_tolerance * r + absolute_tolerance;
+  // The radius is an RMS displacement: ||p||_M = radius * sqrt(total mass).
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(n);
+  const double max_radius = 1e3 * prm.trust_radius * std::sqrt(problem.mass_dot(ones, ones) / 3.0);
+  double radius = prm.trust_radius * std::sqrt(problem.mass_dot(ones, ones) / 3.0);
+  int rejected = 0;
+  for (int it = 0;; ++it) {
+    nr.final_residual = r;
+    if (r <= nr.tolerance) {
+      nr.stop_reason = "residual";
+      break;
+    }
+    if (it == prm.max_iterations)
+      return fail("newton", Status::no_convergence,
+                  fmt::format("trust-region Newton did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, radius {:.3e})",
+                              nr.tolerance, it, r, radius));
+    NewtonIteration rec;
+    rec.merit = e;
+    rec.residual = r;
+    // Step: the Newton step when K is positive definite and the step fits, the dogleg
+    // when it does not fit, Steihaug-Toint CG when K is indefinite.
+    problem.assemble(d, HessianMode::exact, 0.0);
+    const Status st = problem.factorize();
+    LinearReport lr;
+    bool have_newton = false;
+    if (st == Status::success) {
+      p.setZero();
+      lr = problem.solve(-f, p);
+      linear.accumulate(lr);
+      have_newton = lr.status == Status::success && !lr.indefinite && f.dot(p) < 0;
+    }
+    if (have_newton && problem.mass_dot(p, p) > radius * radius) {
+      // Dogleg between the Cauchy point along -M~^-1 f and the Newton point.
+      problem.mass_inverse(f, g);
+      problem.multiply(g, Kp);
+      const Eigen::VectorXd pc = -(f.dot(g) / std::max(g.dot(Kp), 1e-300)) * g;
+      if (problem.mass_dot(pc, pc) >= radius * radius) {
+        p = pc * (radius / std::sqrt(problem.mass_dot(pc, pc)));
+      } else {
+        const Eigen::VectorXd seg = p - pc;
+        p = pc + to_boundary(problem, pc, seg, radius) * seg;
+      }
+    } else if (!have_newton) {
+      int cg = 0;
+      bool negative = false;
+      p = steihaug(problem, f, radius, 1e-6, 500, cg, negative);
+      rec.linear_iterations += cg;
+      rec.projected = false;
+      linear.iterations += cg;
+    }
+    problem.multiply(p, Kp);
+    const double predicted = -(f.dot(p) + 0.5 * p.dot(Kp));
+    trial = d + p;
+    const double e_trial = problem.potential(trial);
+    const double actual = e - e_trial;
+    const double rho = predicted > 0 ? actual / predicted : -1.0;
+    rec.directional_derivative = f.dot(p);
+    rec.line_search_evaluations = 1;
+    const double pnorm = std::sqrt(problem.mass_dot(p, p));
+    if (!std::isfinite(e_trial) || rho < 0.25) radius = 0.25 * pnorm;
+    else if (rho > 0.75 && pnorm >= 0.99 * radius) radius = std::min(2 * radius, max_radius);
+    nr.iterations = it + 1;
+    if (std::isfinite(e_trial) && rho > 1e-4) {
+      d = trial;
+      e = e_trial;
+      problem.gradient(d, f);
+      r = problem.norm(f);
+      rec.step_length = 1.0;
+      rec.step_norm = p.cwiseAbs().maxCoeff();
+      rejected = 0;
+    } else {
+      rec.step_length = 0.0;
+      // A step rejected because its decrease is below round-off: converged to precision.
+      if (predicted < 1e-12 * (std::abs(e) + problem.merit_scale())) {
+        nr.history.push_back(rec);
+        nr.stop_reason = "precision";
+        break;
+      }
+      if (++rejected > 60) return fail("trust_region", Status::numerical_issue, "the trust region collapsed");
+    }
+    nr.history.push_back(rec);
+    if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient after the step");
+  }
+  nr.status = Status::success;
+  return {};
+}
+
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& nr, LinearReport& linear, StageTimes& times) {
+  if (prm.globalization == Globalization::trust_region) return minimize_trust_region(problem, d, absolute_tolerance, prm, nr, linear);
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), ft(n), dir(n), trial(n);
   auto fail = [&](std::string stage, Status st, std::string msg) {

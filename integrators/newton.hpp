@@ -30,9 +30,14 @@ class NewtonProblem {
   virtual void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) = 0;
   /// ||f||_{M~^-1}.
   virtual double norm(const Eigen::VectorXd& f) const = 0;
-  /// Assemble K(d) (exact or projected Hessian), add shift * M~, and set up the linear
-  /// solver for it.
-  virtual Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) = 0;
+  /// Assemble K(d) (exact or projected Hessian) plus shift * M~.
+  virtual void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) = 0;
+  /// Set up the linear solver for the assembled K.
+  virtual Status factorize() = 0;
+  Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) {
+    assemble(d, mode, shift);
+    return factorize();
+  }
   /// Solve K p = rhs with the prepared matrix; p is zero on constrained entries.
   virtual LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) = 0;
   /// y = K x with the prepared matrix.
@@ -41,6 +46,8 @@ class NewtonProblem {
   virtual void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const = 0;
   /// Magnitude of the terms summed in E (their round-off bounds how finely E resolves).
   virtual double merit_scale() const = 0;
+  /// u^T M~ v (the metric of trust regions).
+  virtual double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const = 0;
 };
 
 /// Which Hessian the Newton directions use.
@@ -53,6 +60,13 @@ enum class HessianChoice {
 };
 inline constexpr std::array<std::string_view, 3> hessian_choice_names = {"adaptive", "exact", "projected"};
 
+/// How Newton steps are globalised.
+enum class Globalization {
+  line_search,   ///< direction from the Hessian choice, step length from the line search
+  trust_region,  ///< exact Hessian; Steihaug-Toint truncated CG in the mass norm
+};
+inline constexpr std::array<std::string_view, 2> globalization_names = {"line_search", "trust_region"};
+
 /// Parameters of the Newton iteration (the flat keys of an integrator's section).
 struct NewtonParams {
   int max_iterations = 100;           ///< Newton iterations per step
@@ -63,6 +77,8 @@ struct NewtonParams {
   double max_shift = 1e2;             ///< adaptive: beyond this, project per element instead
   LineSearchKind line_search = LineSearchKind::backtracking;
   LineSearchParams search;
+  Globalization globalization = Globalization::line_search;
+  double trust_radius = 1e-2;         ///< [m] initial trust radius (RMS displacement, mass-weighted)
 
   template <class V>
   void visit_newton(V& v) {
@@ -75,6 +91,9 @@ struct NewtonParams {
              "adaptive: exact while K is positive definite, else shifted K + tau M~, else per-element projection");
     v.choice("line_search", line_search, line_search_names, "globalisation on E_inc");
     v.section("search", search);
+    v.choice("globalization", globalization, globalization_names,
+             "line_search (with the Hessian choice) or trust_region (exact Hessian, Steihaug-Toint CG)");
+    v.field("trust_radius", trust_radius, {Unit::length, Range::gt(0), "trust_region: initial radius, as an RMS displacement"});
     v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
     v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
   }
@@ -100,6 +119,13 @@ struct NewtonFailure {
 /// the linear solves to `linear` and the line-search time to `times`.
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& report, LinearReport& linear, StageTimes& times);
+
+/// Trust-region Newton on E (used by `minimize` when prm.globalization = trust_region):
+/// exact Hessian; the Newton step when K is positive definite and it fits in the region,
+/// the dogleg when it does not, Steihaug-Toint truncated CG (mass-preconditioned, following
+/// negative curvature to the boundary) when K is indefinite. Radius in the M~-norm.
+NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance,
+                                    const NewtonParams& prm, NewtonReport& report, LinearReport& linear);
 
 /// One Newton step from d with a full step (the linearly implicit method when d = 0,
 /// spec 02 §4 "LIE"); the direction uses the Hessian choice of `prm`. Never fails for lack

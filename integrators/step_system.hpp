@@ -62,17 +62,17 @@ class StepSystem final : public NewtonProblem {
     p_.state.zero_constrained(f);
   }
   double norm(const Eigen::VectorXd& f) const override { return std::sqrt(f.cwiseAbs2().cwiseQuotient(mt_).sum()); }
-  Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
-    {
-      ScopedTimer t(times_, Stage::hessian);
-      trial_.x = x0_ + d;
-      energy_.add_hessian(trial_, p_.buffer, mode);
-      contact_.add_hessian(trial_, p_.buffer, mode);
-      p_.plan.gather(p_.buffer, p_.matrix);
-      p_.matrix.scale(dt2_);
-      p_.matrix.add_diagonal((1.0 + shift) * mt_);
-      p_.matrix.filter_rows(p_.fixed, 1.0);
-    }
+  void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
+    ScopedTimer t(times_, Stage::hessian);
+    trial_.x = x0_ + d;
+    energy_.add_hessian(trial_, p_.buffer, mode);
+    contact_.add_hessian(trial_, p_.buffer, mode);
+    p_.plan.gather(p_.buffer, p_.matrix);
+    p_.matrix.scale(dt2_);
+    p_.matrix.add_diagonal((1.0 + shift) * mt_);
+    p_.matrix.filter_rows(p_.fixed, 1.0);
+  }
+  Status factorize() override {
     ScopedTimer t(times_, Stage::linear_setup);
     Status st = Status::success;
     if (!p_.pattern_analyzed) {
@@ -93,6 +93,7 @@ class StepSystem final : public NewtonProblem {
     p_.state.zero_constrained(out);
   }
   double merit_scale() const override { return dt2_ * std::abs(V0_); }
+  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(mt_.cwiseProduct(v)); }
 
  private:
   const E& energy_;

@@ -19,12 +19,13 @@ class Quartic final : public NewtonProblem {
   double potential(const Eigen::VectorXd& d) override { return W(d[0]); }
   void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) override { f = Eigen::VectorXd::Constant(1, dW(d[0])); }
   double norm(const Eigen::VectorXd& f) const override { return std::abs(f[0]); }
-  Status prepare(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
+  void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
     k_ = ddW(d[0]);
     if (mode == HessianMode::projected) k_ = std::max(k_, 0.0);
     k_ += shift;  // M~ = 1
-    return k_ != 0 ? Status::success : Status::numerical_issue;
   }
+  Status factorize() override { return k_ != 0 ? Status::success : Status::numerical_issue; }
+  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
   LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
     LinearReport r;
     r.indefinite = k_ < 0;
@@ -144,5 +145,27 @@ TEST_SUITE("integrators") {
         CHECK(W(x[0]) < W(0));
       }
     }
+  }
+}
+
+TEST_SUITE("integrators") {
+  TEST_CASE("1D example: the trust region follows negative curvature to the root x = 3") {
+    Quartic q;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(1);
+    NewtonParams prm;
+    prm.globalization = Globalization::trust_region;
+    prm.trust_radius = 1.0;
+    prm.relative_tolerance = 1e-12;
+    prm.length_tolerance = 0;
+    double hint = 0;
+    NewtonReport nr;
+    LinearReport lr;
+    StageTimes times;
+    const NewtonFailure f = minimize(q, x, 0.0, prm, hint, nr, lr, times);
+    REQUIRE_MESSAGE(f.status == Status::success, f.message);
+    CHECK(x[0] == doctest::Approx(3.0).epsilon(1e-12));
+    CHECK(nr.history.front().directional_derivative < 0);  // W''(0) < 0: the first step still descends
+    for (size_t i = 0; i + 1 < nr.history.size(); ++i) CHECK(nr.history[i + 1].merit <= nr.history[i].merit);
+    MESSAGE("trust region: " << nr.iterations << " iterations");
   }
 }
