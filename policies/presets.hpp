@@ -6,7 +6,9 @@
 #include "contact/no_contact.hpp"
 #include "contact/obstacle_penalty.hpp"
 #include "framework/simulator.hpp"
+#include "integrators/backward_euler_root.hpp"
 #include "integrators/incremental_potential.hpp"
+#include "integrators/linearly_implicit.hpp"
 #include "linear/direct.hpp"
 #include "models/energy_sum.hpp"
 #include "models/gravity.hpp"
@@ -25,9 +27,13 @@ using ClothTan = models::EnergySum<models::StvkMembrane<models::Isotropic>, mode
 using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
+using ClothRootDirect = Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
+using ClothLieDirect = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
 
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
 
 }  // namespace weft

@@ -14,7 +14,11 @@
   X(cloth_tan_ip_direct, "membrane(stvk, isotropic) + bending(tan) + gravity", "incremental_potential", \
     "none", "direct", "as cloth_ip_direct with the 2 tan(theta/2) bending energy (thesis Eq. 5.8)")  \
   X(cloth_ip_penalty_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
-    "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)")
+    "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)") \
+  X(cloth_root_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "backward_euler_root", "none",   \
+    "direct", "backward Euler as root finding on the residual (the thesis' comparison, ch. 6)")             \
+  X(cloth_lie_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",     \
+    "direct", "one Newton step per time step (Baraff-Witkin style linearly implicit Euler)")
 
 namespace weft {
 
