@@ -1,6 +1,9 @@
 #include "framework/mesh_generators.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <map>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -64,6 +67,13 @@ MeshData grid(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation 
   return m;
 }
 
+// Texture coordinates of a generated sheet: its (u, v) plane coordinates, before placement.
+MeshData with_plane_uv(MeshData m) {
+  m.UV = m.V.leftCols<2>();
+  m.FUV = m.F;
+  return m;
+}
+
 void check(std::array<int, 2> res) {
   if (res[0] < 2 || res[1] < 2) throw ConfigError(fmt::format("sheet resolution {}x{}: need at least 2x2 vertices", res[0], res[1]));
 }
@@ -72,7 +82,7 @@ void check(std::array<int, 2> res) {
 
 MeshData make_rectangle(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation t, int seed) {
   check(res);
-  return grid(size, res, t, seed, [](int, int) { return true; });
+  return with_plane_uv(grid(size, res, t, seed, [](int, int) { return true; }));
 }
 
 MeshData make_l_shape(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation t, int seed) {
@@ -81,7 +91,7 @@ MeshData make_l_shape(const Eigen::Vector2d& size, std::array<int, 2> res, Tesse
     throw ConfigError(fmt::format("L-shaped sheet resolution {}x{}: both must be odd and >= 3 so the cut lies on grid lines",
                                   res[0], res[1]));
   const int ci = (res[0] - 1) / 2, cj = (res[1] - 1) / 2;
-  return grid(size, res, t, seed, [=](int i, int j) { return !(i >= ci && j >= cj); });
+  return with_plane_uv(grid(size, res, t, seed, [=](int i, int j) { return !(i >= ci && j >= cj); }));
 }
 
 void place_sheet(MeshData& m, SheetPlane plane, const Eigen::Vector3d& center) {
@@ -95,6 +105,48 @@ void place_sheet(MeshData& m, SheetPlane plane, const Eigen::Vector3d& center) {
     }
     m.V.row(k) = (q + center).transpose();
   }
+}
+
+std::vector<Eigen::Vector3d> texture_directions(const MeshData& m, double angle) {
+  std::vector<std::string> errors;
+  int bad = 0;
+  auto report = [&](std::string msg) {
+    if (++bad <= 10) errors.push_back(std::move(msg));
+  };
+  if (!m.has_uv()) throw ConfigError("the mesh has no texture coordinates (OBJ `vt` lines referenced by `f v/vt`)");
+  const Eigen::Vector2d dir(std::cos(angle), std::sin(angle));
+  std::vector<Eigen::Vector3d> out(static_cast<size_t>(m.F.rows()), Eigen::Vector3d::Zero());
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    if ((m.FUV.row(f).array() < 0).any() || (m.FUV.row(f).array() >= m.UV.rows()).any()) {
+      report(fmt::format("face {} has no texture coordinates", f));
+      continue;
+    }
+    Eigen::Matrix<double, 3, 2> X;
+    Eigen::Matrix2d U;
+    for (int k = 0; k < 2; ++k) {
+      X.col(k) = (m.V.row(m.F(f, k + 1)) - m.V.row(m.F(f, 0))).transpose();
+      U.col(k) = (m.UV.row(m.FUV(f, k + 1)) - m.UV.row(m.FUV(f, 0))).transpose();
+    }
+    const double det = U(0, 0) * U(1, 1) - U(0, 1) * U(1, 0);
+    // Zero texture area up to rounding (relative to the texture edge lengths).
+    if (!(std::abs(det) > 1e-12 * std::max(U.col(0).squaredNorm(), U.col(1).squaredNorm()))) {
+      report(fmt::format("face {} has a zero-area texture triangle", f));
+      continue;
+    }
+    // J d with J = X U^-1; U^-1 = adj(U) / det.
+    Eigen::Matrix2d adj;
+    adj << U(1, 1), -U(0, 1), -U(1, 0), U(0, 0);
+    const Eigen::Vector3d t = X * (adj * dir);
+    const double n = t.norm();
+    if (!(n > 0)) {
+      report(fmt::format("face {} has a zero-area rest triangle", f));
+      continue;
+    }
+    out[static_cast<size_t>(f)] = (det > 0 ? 1.0 : -1.0) * t / n;
+  }
+  if (bad > 10) errors.push_back(fmt::format("... and {} more faces", bad - 10));
+  if (!errors.empty()) throw ConfigError("invalid texture coordinates", errors);
+  return out;
 }
 
 }  // namespace weft

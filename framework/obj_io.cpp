@@ -26,14 +26,16 @@ MeshData read_obj(const std::string& path) {
   m.V.resize(nv, 3);
   for (Eigen::Index i = 0; i < nv; ++i)
     for (int c = 0; c < 3; ++c) m.V(i, c) = attrib.vertices[3 * i + c];
-  std::vector<Eigen::Vector3i> faces;
+  std::vector<Eigen::Vector3i> faces, face_uvs;
   for (const auto& shape : reader.GetShapes()) {
     size_t offset = 0;
     for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
       const int n = shape.mesh.num_face_vertices[f];
-      if (n == 3)
-        faces.emplace_back(shape.mesh.indices[offset].vertex_index, shape.mesh.indices[offset + 1].vertex_index,
-                           shape.mesh.indices[offset + 2].vertex_index);
+      if (n == 3) {
+        const auto& idx = shape.mesh.indices;
+        faces.emplace_back(idx[offset].vertex_index, idx[offset + 1].vertex_index, idx[offset + 2].vertex_index);
+        face_uvs.emplace_back(idx[offset].texcoord_index, idx[offset + 1].texcoord_index, idx[offset + 2].texcoord_index);
+      }
       offset += n;
     }
   }
@@ -44,6 +46,21 @@ MeshData read_obj(const std::string& path) {
         throw ConfigError(fmt::format("{}: malformed OBJ: face references vertex {} of {}", path, f[c] + 1, nv));
   m.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
   for (size_t k = 0; k < faces.size(); ++k) m.F.row(static_cast<Eigen::Index>(k)) = faces[k].transpose();
+  // Texture coordinates (`vt u v [w]`, tinyobjloader keeps u and v): per face corner, as
+  // OBJ indexes them separately from the vertices (seams). Corners without one keep -1.
+  const auto nt = static_cast<Eigen::Index>(attrib.texcoords.size() / 2);
+  if (nt > 0) {
+    m.UV.resize(nt, 2);
+    for (Eigen::Index i = 0; i < nt; ++i)
+      for (int c = 0; c < 2; ++c) m.UV(i, c) = attrib.texcoords[2 * i + c];
+    m.FUV.resize(m.F.rows(), 3);
+    for (size_t k = 0; k < face_uvs.size(); ++k)
+      for (int c = 0; c < 3; ++c) {
+        const int t = face_uvs[k][c];
+        if (t >= nt) throw ConfigError(fmt::format("{}: malformed OBJ: face references texture coordinate {} of {}", path, t + 1, nt));
+        m.FUV(static_cast<Eigen::Index>(k), c) = t < 0 ? -1 : t;
+      }
+  }
   return m;
 }
 

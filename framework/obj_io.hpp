@@ -10,8 +10,9 @@
 
 namespace weft {
 
-/// Read a triangle mesh. Throws ConfigError naming the file for a missing or malformed
-/// file, or one without faces.
+/// Read a triangle mesh, with its texture coordinates (`vt`, per face corner) when the file
+/// has them. Throws ConfigError naming the file for a missing or malformed file, or one
+/// without faces.
 MeshData read_obj(const std::string& path);
 
 /// Write vertices (#V*3 stacked) and faces. Writes to `path` + ".tmp" and renames, so a

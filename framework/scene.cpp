@@ -2,7 +2,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -21,6 +23,140 @@ Eigen::Vector3d Motion::apply(const Eigen::Vector3d& x0, double t) const {
     x = center + velocity * tau + R * (x0 - center);
   }
   return x;
+}
+
+Checker ShellMaterial::validate(const std::string& path) const {
+  Checker c(path);
+  c.require(density > 0, "density", density, "> 0").require(thickness > 0, "thickness", thickness, "> 0");
+  if (!orthotropic()) {
+    c.require(youngs_modulus > 0, "youngs_modulus", youngs_modulus, "> 0")
+        .require(poisson_ratio > -1 && poisson_ratio < 1, "poisson_ratio", poisson_ratio, "in (-1, 1) (2D plane stress)");
+    for (const auto& [key, value] : {std::pair{"youngs_modulus_warp", youngs_modulus_warp},
+                                     std::pair{"youngs_modulus_weft", youngs_modulus_weft}, std::pair{"shear_modulus", shear_modulus}})
+      if (value) c.fail(fmt::format("{}.{} is only read when model = orthotropic: set model = \"orthotropic\" or remove it", path, key));
+    return c;
+  }
+  // Positive definiteness at rest (spec 01 §3.2): Y_x > 0, eta > 0, G > 0, eta nu^2 < 1.
+  for (const auto& [key, value] : {std::pair{"youngs_modulus_warp", youngs_modulus_warp},
+                                   std::pair{"youngs_modulus_weft", youngs_modulus_weft}, std::pair{"shear_modulus", shear_modulus}})
+    if (!value) c.fail(fmt::format("{}.{} is required when model = orthotropic", path, key));
+  if (youngs_modulus_warp) c.require(*youngs_modulus_warp > 0, "youngs_modulus_warp", *youngs_modulus_warp, "Y_warp > 0");
+  if (youngs_modulus_weft) c.require(*youngs_modulus_weft > 0, "youngs_modulus_weft", *youngs_modulus_weft, "Y_weft > 0");
+  if (shear_modulus) c.require(*shear_modulus > 0, "shear_modulus", *shear_modulus, "G12 > 0");
+  c.require(std::isfinite(poisson_ratio), "poisson_ratio", poisson_ratio, "a finite number");
+  if (youngs_modulus_warp && youngs_modulus_weft && *youngs_modulus_warp > 0 && *youngs_modulus_weft > 0) {
+    const double e = eta(), enu2 = e * poisson_ratio * poisson_ratio;
+    c.require(enu2 < 1, "poisson_ratio", poisson_ratio,
+              fmt::format("eta nu^2 < 1 with eta = youngs_modulus_weft / youngs_modulus_warp = {} (here eta nu^2 = {}; "
+                          "positive definiteness at rest needs |nu| < {})",
+                          e, enu2, 1.0 / std::sqrt(e)));
+  }
+  return c;
+}
+
+double RestStateSpec::scale(double t) const {
+  if (keyframes.empty()) return 1.0;
+  if (t <= keyframes.front().time) return keyframes.front().scale;
+  for (size_t k = 1; k < keyframes.size(); ++k)
+    if (t <= keyframes[k].time) {
+      const auto &a = keyframes[k - 1], &b = keyframes[k];
+      const double u = (t - a.time) / (b.time - a.time);
+      return (1.0 - u) * a.scale + u * b.scale;
+    }
+  return keyframes.back().scale;
+}
+
+bool Scene::has_animated_rest() const {
+  for (const auto& c : spec.cloths)
+    if (c.rest_state.active()) return true;
+  return false;
+}
+
+double triangle_area(const Eigen::Vector3d& length2) {
+  if (!(length2.minCoeff() > 0) || !length2.allFinite()) return -1;
+  std::array<double, 3> l = {std::sqrt(length2[0]), std::sqrt(length2[1]), std::sqrt(length2[2])};
+  std::sort(l.begin(), l.end(), std::greater<>());
+  const double a = l[0], b = l[1], c = l[2];
+  // Kahan, "Miscalculating area and angles of a needle-like triangle": exact up to a few
+  // ulps for any shape; the factor c - (a - b) is negative iff a > b + c.
+  const double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+  return p >= 0 ? 0.25 * std::sqrt(p) : -1.0;
+}
+
+bool proper_triangle(const Eigen::Vector3d& length2) {
+  return 2.0 * triangle_area(length2) > 1e-12 * length2.maxCoeff();
+}
+
+std::vector<unsigned char> rest_state_edges(const Scene& scene) {
+  const auto& edges = scene.mesh.edges();
+  std::vector<unsigned char> sel(edges.size(), 0);
+  for (size_t e = 0; e < edges.size(); ++e) {
+    const int f = scene.mesh.edge_faces()[e][0];
+    const RestStateSpec& r = scene.spec.cloths[scene.face_cloth[f]].rest_state;
+    if (!r.active()) continue;
+    if (!r.has_box()) {
+      sel[e] = 1;
+      continue;
+    }
+    bool inside = true;
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector3d p = scene.mesh.rest().row(edges[e][k]);
+      inside = inside && (p.array() >= r.box_min.array()).all() && (p.array() <= r.box_max.array()).all();
+    }
+    sel[e] = inside;
+  }
+  return sel;
+}
+
+Checker check_rest_states(const Scene& scene) {
+  Checker c;
+  if (!scene.has_animated_rest()) return c;
+  const std::vector<unsigned char> sel = rest_state_edges(scene);
+  const auto& F = scene.mesh.faces();
+  const auto& X = scene.mesh.rest();
+  std::vector<int> selected(scene.spec.cloths.size(), 0), bad(scene.spec.cloths.size(), 0);
+  for (size_t e = 0; e < sel.size(); ++e) selected[scene.face_cloth[scene.mesh.edge_faces()[e][0]]] += sel[e];
+  for (size_t k = 0; k < scene.spec.cloths.size(); ++k) {
+    const RestStateSpec& r = scene.spec.cloths[k].rest_state;
+    if (r.active() && selected[k] == 0)
+      c.fail(fmt::format("cloths.{}.rest_state: the box [{}] .. [{}] selects no edge of the cloth (both end points must be inside)", k,
+                         fmt::join(r.box_min.data(), r.box_min.data() + 3, ", "), fmt::join(r.box_max.data(), r.box_max.data() + 3, ", ")));
+  }
+  for (int f = 0; f < scene.mesh.num_faces(); ++f) {
+    const int k = scene.face_cloth[f];
+    const RestStateSpec& r = scene.spec.cloths[k].rest_state;
+    if (!r.active()) continue;
+    Eigen::Vector3d l2;
+    std::array<bool, 3> scaled{};
+    for (int i = 0; i < 3; ++i) {
+      // Edge i is opposite local vertex i.
+      l2[i] = (X.row(F(f, (i + 2) % 3)) - X.row(F(f, (i + 1) % 3))).squaredNorm();
+      scaled[i] = sel[scene.mesh.face_edges()[f][i]] != 0;
+    }
+    // The keyframes whose factor is smallest and largest; s(t) stays between them.
+    size_t lo = 0, hi = 0;
+    for (size_t q = 1; q < r.keyframes.size(); ++q) {
+      if (r.keyframes[q].scale < r.keyframes[lo].scale) lo = q;
+      if (r.keyframes[q].scale > r.keyframes[hi].scale) hi = q;
+    }
+    for (size_t q : {lo, hi}) {
+      const double g = 1.0 - r.weight + r.weight * r.keyframes[q].scale;
+      Eigen::Vector3d m2 = l2;
+      for (int i = 0; i < 3; ++i)
+        if (scaled[i]) m2[i] *= g * g;
+      if (proper_triangle(m2)) continue;
+      if (++bad[k] <= 10)
+        c.fail(fmt::format("cloths.{}.rest_state: face {} (vertices {} {} {}) is not a proper triangle at keyframe {} (t = {} s, factor "
+                           "1 - w + w s = {}): its rest lengths {:.6g} {:.6g} {:.6g} violate the triangle inequality l_i < l_j + l_k "
+                           "(or collapse it); keep the box boundary away from it or reduce the change of scale",
+                           k, f - scene.cloth_face_offset[k], F(f, 0), F(f, 1), F(f, 2), q, r.keyframes[q].time, g, std::sqrt(m2[0]),
+                           std::sqrt(m2[1]), std::sqrt(m2[2])));
+      break;
+    }
+  }
+  for (size_t k = 0; k < bad.size(); ++k)
+    if (bad[k] > 10) c.fail(fmt::format("cloths.{}.rest_state: ... and {} more faces", k, bad[k] - 10));
+  return c;
 }
 
 int TimeSpec::steps_per_frame() const { return std::max(1, static_cast<int>(std::lround(1.0 / (frame_rate * dt)))); }
@@ -84,6 +220,18 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
     if (cl.mesh.source == MeshSource::l_shape)
       c.require(cl.mesh.resolution[0] % 2 == 1 && cl.mesh.resolution[1] % 2 == 1, p + ".mesh.resolution",
                 fmt::format("[{}, {}]", cl.mesh.resolution[0], cl.mesh.resolution[1]), "odd numbers for an l_shape");
+    c.merge(cl.material.validate(p + ".material"));
+    if (cl.material.orthotropic() && cl.material.warp_from == WarpFrom::angle && cl.mesh.source == MeshSource::file)
+      c.fail(fmt::format("{}.material.warp_from = \"angle\": an OBJ mesh (mesh.source = file) has no sheet axes; use warp_from = "
+                         "\"uv\" (the warp then follows the texture u axis, rotated by warp_angle)",
+                         p));
+    const RestStateSpec& rs = cl.rest_state;
+    for (size_t q = 1; q < rs.keyframes.size(); ++q)
+      c.require(rs.keyframes[q].time > rs.keyframes[q - 1].time, fmt::format("{}.rest_state.keyframes.{}.time", p, q),
+                rs.keyframes[q].time, fmt::format("> keyframes.{}.time = {} (strictly increasing)", q - 1, rs.keyframes[q - 1].time));
+    const bool box_given = rs.box_min.array().isFinite().any() || rs.box_max.array().isFinite().any();
+    if (rs.active() && box_given && !rs.has_box())
+      c.fail(fmt::format("{}.rest_state: give both box_min and box_max, with box_min <= box_max", p));
     for (size_t q = 0; q < cl.pins.size(); ++q) {
       const auto& pin = cl.pins[q];
       const std::string pp = fmt::format("{}.pins.{}", p, q);
@@ -147,6 +295,20 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
     r.finish();
   }
   if (!errors.empty()) throw ConfigError(header, errors);
+  // Keys with a default that the chosen material model does not read (unknown keys are
+  // errors; so are keys that would be silently ignored).
+  for (size_t c = 0; c < scene.spec.cloths.size(); ++c) {
+    const Json& cj = rest.at("cloths").at(c);
+    if (!cj.contains("material")) continue;
+    const Json& mj = cj.at("material");
+    const bool ortho = scene.spec.cloths[c].material.orthotropic();
+    for (const char* key : ortho ? std::vector<const char*>{"youngs_modulus"} : std::vector<const char*>{"warp_from", "warp_angle"})
+      if (mj.contains(key))
+        errors.push_back(ortho ? fmt::format("cloths.{}.material.{} is not read when model = orthotropic: give youngs_modulus_warp and "
+                                             "youngs_modulus_weft",
+                                             c, key)
+                               : fmt::format("cloths.{}.material.{} is only read when model = orthotropic", c, key));
+  }
   validate_spec(scene.spec, errors);
   if (!errors.empty()) throw ConfigError(header, errors);
 
@@ -178,6 +340,22 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
     scene.mesh = TriangleMesh(V, F);
   } catch (const ConfigError& e) {
     throw ConfigError(header, {e.what()});
+  }
+  // Warp directions of orthotropic cloths, per face (spec 01 §10.2: a 3D unit vector in the
+  // rest plane). Generated sheets carry their (u, v) coordinates as texture coordinates, so
+  // both sources go through `texture_directions`.
+  scene.face_warp.assign(static_cast<size_t>(nf), Eigen::Vector3d::Zero());
+  for (size_t c = 0; c < parts.size(); ++c) {
+    const ShellMaterial& m = scene.spec.cloths[c].material;
+    if (!m.orthotropic()) continue;
+    const std::string key = fmt::format("cloths.{}.material.warp_from = \"{}\"", c, enum_name(m.warp_from, warp_from_names));
+    try {
+      const auto dirs = texture_directions(parts[c], m.warp_angle);
+      std::copy(dirs.begin(), dirs.end(), scene.face_warp.begin() + scene.cloth_face_offset[c]);
+    } catch (const ConfigError& e) {
+      if (e.violations().empty()) errors.push_back(fmt::format("{}: {}", key, e.what()));
+      for (const auto& v : e.violations()) errors.push_back(fmt::format("{}: {}", key, v));
+    }
   }
   for (int f = 0; f < scene.mesh.num_faces(); ++f) {
     const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
@@ -221,6 +399,10 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
         scene.vertex_motion[i] = scripted ? static_cast<int>(scene.motions.size()) - 1 : -1;
       }
     }
+  }
+  {
+    const Checker rc = check_rest_states(scene);
+    errors.insert(errors.end(), rc.violations().begin(), rc.violations().end());
   }
   if (!errors.empty()) throw ConfigError(header, errors);
   for (auto& o : scene.spec.obstacles)

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <string>
@@ -19,27 +20,135 @@
 
 namespace weft {
 
-/// Isotropic thin-shell material (issue 3 adds orthotropic constants).
-struct ShellMaterial {
-  double density = 0.15;           ///< [kg/m^2] mass per rest area
-  double youngs_modulus = 2e7;     ///< [Pa]
-  double poisson_ratio = 0.3;      ///< [-] 2D plane-stress bound: in (-1, 1)
-  double thickness = 3e-4;         ///< [m]
-  std::optional<double> bending_stiffness;  ///< [J] k; default Y h^3 / (24 (1 - nu^2))
+/// Constitutive model of a cloth's membrane (spec 01 §3).
+enum class MaterialModel { isotropic, orthotropic };
+inline constexpr std::array<std::string_view, 2> material_model_names = {"isotropic", "orthotropic"};
+/// Where the warp direction of an orthotropic cloth comes from.
+enum class WarpFrom { angle, uv };
+inline constexpr std::array<std::string_view, 2> warp_from_names = {"angle", "uv"};
 
-  /// k = Y h^3 / (24 (1 - nu^2)) unless given explicitly (spec 01 Eq. 5.11).
-  double bending_k() const {
-    return bending_stiffness ? *bending_stiffness
-                             : youngs_modulus * thickness * thickness * thickness / (24.0 * (1.0 - poisson_ratio * poisson_ratio));
+/// Thin-shell material of one cloth: isotropic (Y, nu), or orthotropic from the engineering
+/// constants of a woven fabric (spec 01 §3.2).
+///
+/// **Warp/weft convention** (spec 01 §3.2 leaves the assignment of the structural direction
+/// ahat to warp or weft to the project): the spec's x axis, ahat_perp, is the **warp**; its y
+/// axis, ahat, is the **weft** (in the rest plane, perpendicular to the warp). Hence
+///   Y   = Y_x  = youngs_modulus_warp,      eta = Y_y / Y_x = youngs_modulus_weft / youngs_modulus_warp,
+///   nu  = nu_xy = poisson_ratio: the strain ratio -eps_weft / eps_warp under uniaxial stress
+///         along the warp (the weft->warp ratio is nu_yx = eta nu, by reciprocity nu_xy/Y_x = nu_yx/Y_y),
+///   G   = 2 shear_modulus: the thesis' G is the Voigt entry for tensor shear strain, twice the
+///         engineering shear modulus G12 (spec 01 §0 trap 4).
+/// Positive definiteness at rest (spec 01 §2.3, §3.2): Y_warp > 0, Y_weft > 0, G12 > 0 and
+/// eta nu^2 < 1; isotropic: Y > 0 and -1 < nu < 1 (the 2D plane-stress bound, not nu < 1/2).
+struct ShellMaterial {
+  MaterialModel model = MaterialModel::isotropic;
+  double density = 0.15;           ///< [kg/m^2] mass per rest area
+  double youngs_modulus = 2e7;     ///< [Pa] isotropic only
+  std::optional<double> youngs_modulus_warp;  ///< [Pa] orthotropic: Y_x along the warp; required
+  std::optional<double> youngs_modulus_weft;  ///< [Pa] orthotropic: Y_y along the weft; required
+  std::optional<double> shear_modulus;        ///< [Pa] orthotropic: engineering G12 (G = 2 G12); required
+  double poisson_ratio = 0.3;      ///< [-] isotropic: nu in (-1, 1); orthotropic: nu_xy (warp -> weft), eta nu^2 < 1
+  double thickness = 3e-4;         ///< [m]
+  std::optional<double> bending_stiffness;  ///< [J] k; default see bending_k()
+  WarpFrom warp_from = WarpFrom::angle;     ///< orthotropic: source of the warp direction
+  double warp_angle = 0;           ///< [rad] orthotropic: warp angle in the sheet's (u, v) / texture plane
+
+  bool orthotropic() const { return model == MaterialModel::orthotropic; }
+  /// eta = Y_weft / Y_warp (1 for isotropic materials).
+  double eta() const {
+    return orthotropic() ? youngs_modulus_weft.value_or(0) / youngs_modulus_warp.value_or(0) : 1.0;
   }
+  /// Hinge bending stiffness k [J] (spec 01 Eq. 5.11): `bending_stiffness` if given, else half
+  /// the flexural rigidity, k = D / 2:
+  ///   isotropic:   k = Y h^3 / (24 (1 - nu^2));
+  ///   orthotropic: k = sqrt(D_warp D_weft) / 2 = sqrt(Y_warp Y_weft) h^3 / (24 (1 - nu_xy nu_yx)),
+  ///                nu_xy nu_yx = eta nu^2 (geometric mean of the two principal rigidities of an
+  ///                orthotropic plate; equals the isotropic value when eta = 1).
+  double bending_k() const {
+    if (bending_stiffness) return *bending_stiffness;
+    const double h3 = thickness * thickness * thickness;
+    if (orthotropic()) {
+      const double yx = youngs_modulus_warp.value_or(0), yy = youngs_modulus_weft.value_or(0);
+      return std::sqrt(yx * yy) * h3 / (24.0 * (1.0 - poisson_ratio * poisson_ratio * yy / yx));
+    }
+    return youngs_modulus * h3 / (24.0 * (1.0 - poisson_ratio * poisson_ratio));
+  }
+  /// Cross-field and stability checks (every violation at once), keys prefixed by `path`
+  /// (e.g. "cloths.0.material"): the inequalities above, the orthotropic constants required
+  /// for model = orthotropic and absent for model = isotropic, thickness > 0.
+  Checker validate(const std::string& path) const;
+
   template <class V>
   void visit(V& v) {
+    v.choice("model", model, material_model_names,
+             "membrane material: isotropic (youngs_modulus, poisson_ratio) or orthotropic (warp/weft constants)");
     v.field("density", density, {Unit::area_density, Range::gt(0), "mass per rest area"});
-    v.field("youngs_modulus", youngs_modulus, {Unit::pressure, Range::gt(0), "Young's modulus of the sheet material"});
-    v.field("poisson_ratio", poisson_ratio, {Unit::none, Range::open(-1, 1), "Poisson ratio (2D plane stress: -1 < nu < 1)"});
+    v.field("youngs_modulus", youngs_modulus,
+            {Unit::pressure, Range::gt(0), "isotropic: Young's modulus Y of the sheet material (not read when orthotropic)"});
+    v.field("youngs_modulus_warp", youngs_modulus_warp,
+            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the warp (spec x axis, ahat_perp)"});
+    v.field("youngs_modulus_weft", youngs_modulus_weft,
+            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the weft (spec y axis, ahat)"});
+    v.field("shear_modulus", shear_modulus,
+            {Unit::pressure, Range::gt(0), "orthotropic (required): engineering in-plane shear modulus G12 (the thesis' G = 2 G12)"});
+    // The isotropic bound is a field range; an orthotropic nu_xy is bounded only together with
+    // eta (eta nu^2 < 1, checked by `validate`), so its range depends on `model`, read above.
+    v.field("poisson_ratio", poisson_ratio,
+            {Unit::none, orthotropic() ? Range::any() : Range::open(-1, 1),
+             "isotropic: Poisson ratio, -1 < nu < 1 (2D plane stress); orthotropic: nu_xy = -strain_weft / strain_warp "
+             "under uniaxial stress along the warp, (Y_weft / Y_warp) nu^2 < 1"});
     v.field("thickness", thickness, {Unit::length, Range::gt(0), "shell thickness h"});
     v.field("bending_stiffness", bending_stiffness,
-            {Unit::energy, Range::ge(0), "hinge bending stiffness k; default Y h^3 / (24 (1 - nu^2))"});
+            {Unit::energy, Range::ge(0),
+             "hinge bending stiffness k; default Y h^3 / (24 (1 - nu^2)), orthotropic sqrt(Y_warp Y_weft) h^3 / (24 (1 - eta nu^2))"});
+    v.choice("warp_from", warp_from, warp_from_names,
+             "orthotropic: warp direction from `warp_angle` in the generated sheet's (u, v) plane (angle), or per face from the "
+             "OBJ texture coordinates: the rest-triangle image of the texture direction at `warp_angle` from the u axis (uv)");
+    v.field("warp_angle", warp_angle,
+            {Unit::angle, Range::any(), "orthotropic: warp angle from the sheet's first axis (angle) or from the texture u axis (uv)"});
+  }
+};
+
+/// One keyframe of an animated rest state.
+struct RestKeyframe {
+  double time = 0;   ///< [s]
+  double scale = 1;  ///< [-] rest-length scale factor s
+  template <class V>
+  void visit(V& v) {
+    v.field("time", time, {Unit::time, Range::ge(0), "keyframe time", true});
+    v.field("scale", scale, {Unit::none, Range::gt(0), "rest-length scale factor s at that time", true});
+  }
+};
+
+/// Animated rest state of one cloth (spec 01 §5): every selected edge has the rest length
+///   lbar_e(t) = lbar_e (1 - w + w s(t)),
+/// with s(t) piecewise linear through the keyframes (strictly increasing times) and constant
+/// before the first and after the last. Edges are selected when both end points' rest
+/// positions lie in [box_min, box_max], or all edges of the cloth without a box. Only the
+/// membrane follows it: masses and bending rest data (rest angles, hinge weights) stay those
+/// of the mesh. With a box, triangles on its boundary have some edges scaled and others not;
+/// the scene is rejected at load if any triangle would violate the triangle inequalities (or
+/// become degenerate) at an extreme keyframe scale. The feasible factors of a triangle form an
+/// interval, so checking the extremes covers every time.
+struct RestStateSpec {
+  std::vector<RestKeyframe> keyframes;  ///< empty: the rest state is static
+  double weight = 1.0;                  ///< [-] w, blend between the mesh (0) and the script (1)
+  Eigen::Vector3d box_min = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d box_max = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+
+  bool active() const { return !keyframes.empty(); }
+  bool has_box() const { return (box_min.array() <= box_max.array()).all(); }
+  /// s(t), piecewise linear; 1 without keyframes.
+  double scale(double t) const;
+  /// The rest-length factor 1 - w + w s(t) of selected edges.
+  double factor(double t) const { return 1.0 - weight + weight * scale(t); }
+  template <class V>
+  void visit(V& v) {
+    v.list("keyframes", keyframes, "(time, scale) keyframes of the rest-length scale s(t), strictly increasing times", 1);
+    v.field("weight", weight, {Unit::none, Range::closed(0, 1), "blend weight w: lbar(t) = lbar (1 - w + w s(t))"});
+    v.field("box_min", box_min,
+            {Unit::length, Range::any(), "select edges whose end points' rest positions are in [box_min, box_max] (default: all)"});
+    v.field("box_max", box_max, {Unit::length, Range::any(), "upper corner of the selection box"});
   }
 };
 
@@ -126,6 +235,7 @@ struct ClothSpec {
   ShellMaterial material;
   std::vector<PinSpec> pins;
   Eigen::Vector3d initial_velocity = Eigen::Vector3d::Zero();  ///< [m/s]
+  RestStateSpec rest_state;        ///< animated rest state (spec 01 §5); static when it has no keyframes
   template <class V>
   void visit(V& v) {
     v.field("name", name, {Unit::none, Range::any(), "name used in output files"});
@@ -133,6 +243,7 @@ struct ClothSpec {
     v.section("material", material);
     v.list("pins", pins, "pinned or scripted vertex sets");
     v.field("initial_velocity", initial_velocity, {Unit::velocity, Range::any(), "initial velocity of every vertex"});
+    v.section("rest_state", rest_state);
   }
 };
 
@@ -230,11 +341,17 @@ struct Scene {
   std::vector<int> cloth_vertex_offset;  ///< #cloths+1: vertex range of each cloth
   std::vector<int> cloth_face_offset;    ///< #cloths+1: face range of each cloth
   std::vector<int> face_cloth;      ///< #F: cloth index of each face (material = cloths[c].material)
+  /// #F: unit warp direction (spec x axis, ahat_perp) in the rest plane of each face of an
+  /// orthotropic cloth, zero for isotropic cloths. May be empty when no cloth is orthotropic
+  /// (scenes built in code fill it themselves).
+  std::vector<Eigen::Vector3d> face_warp;
   std::vector<Dof> dof;             ///< #V
   std::vector<int> vertex_motion;   ///< #V: index into `motions` for scripted vertices, else -1
   std::vector<Motion> motions;
 
   const ShellMaterial& face_material(int f) const { return spec.cloths[face_cloth[f]].material; }
+  /// True if some cloth has an animated rest state.
+  bool has_animated_rest() const;
   /// Lumped masses: each triangle gives density * area / 3 to each of its vertices [kg].
   Eigen::VectorXd lumped_masses() const;
   /// Initial state (rest positions, initial velocities, masses, dofs).
@@ -242,6 +359,21 @@ struct Scene {
   /// Prescribed positions of non-free vertices at time t (free entries: current x).
   void constrained_positions(double t, const State& s, Eigen::VectorXd& target) const;
 };
+
+/// Area of a triangle given its squared edge lengths (Heron's formula in Kahan's stable
+/// form), or -1 when the lengths violate the triangle inequalities (or are not positive).
+double triangle_area(const Eigen::Vector3d& length2);
+/// A triangle that is not degenerate up to rounding: 2 area > 1e-12 max_i l_i^2 (the same
+/// relative threshold as the zero-area check of rest faces).
+bool proper_triangle(const Eigen::Vector3d& length2);
+
+/// Animated rest state, edge selection: #E flags, 1 when edge e's rest length follows its
+/// cloth's `rest_state` (both end points in the box, or every edge of the cloth without one).
+std::vector<unsigned char> rest_state_edges(const Scene& scene);
+/// Animated rest state, mesh-level checks: each box selects at least one edge, and every face
+/// of an animated cloth stays a proper triangle (`proper_triangle`) at both extreme factors
+/// 1 - w + w s over the keyframes. Keys are named "cloths.N.rest_state".
+Checker check_rest_states(const Scene& scene);
 
 /// Build a scene from a parsed JSON document. `base_dir` resolves relative mesh paths.
 /// Throws ConfigError listing every problem, each prefixed with `origin` (the file).

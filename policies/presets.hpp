@@ -24,15 +24,21 @@ using ClothTheta = models::EnergySum<models::StvkMembrane<models::Isotropic>, mo
 using ClothTan = models::EnergySum<models::StvkMembrane<models::Isotropic>, models::HingeBending<models::TanEnergy>,
                                    models::Gravity>;
 
+/// Orthotropic StVK membrane (warp/weft; also accepts isotropic cloths) + hinge bending (theta) + gravity.
+using ClothOrtho = models::EnergySum<models::StvkMembrane<models::Orthotropic>, models::HingeBending<models::ThetaEnergy>,
+                                     models::Gravity>;
+
 using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
+using ClothOrthoIpDirect = Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothRootDirect = Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 using ClothLieDirect = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
 
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
+extern template class Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
 

@@ -13,6 +13,8 @@
     "none", "direct", "cloth without contact: backward Euler as minimisation, sparse LDL^T")         \
   X(cloth_tan_ip_direct, "membrane(stvk, isotropic) + bending(tan) + gravity", "incremental_potential", \
     "none", "direct", "as cloth_ip_direct with the 2 tan(theta/2) bending energy (thesis Eq. 5.8)")  \
+  X(cloth_ortho_ip_direct, "membrane(stvk, orthotropic) + bending(theta) + gravity", "incremental_potential", \
+    "none", "direct", "cloth with warp/weft material constants (isotropic cloths accepted too), no contact") \
   X(cloth_ip_penalty_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)") \
   X(cloth_root_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "backward_euler_root", "none",   \
@@ -43,6 +45,10 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
   if (combo.contact == "none" && !scene.spec.obstacles.empty())
     return fmt::format("the scene has {} obstacle(s) but contact = none would let the cloth pass through them",
                        scene.spec.obstacles.size());
+  if (combo.energy.find("membrane(stvk, isotropic)") != std::string_view::npos)
+    for (size_t c = 0; c < scene.spec.cloths.size(); ++c)
+      if (scene.spec.cloths[c].material.orthotropic())
+        return fmt::format("cloths.{}.material.model = orthotropic needs membrane(stvk, orthotropic)", c);
   if (combo.contact == "obstacle_penalty" && scene.spec.obstacles.empty())
     return "the scene has no obstacles: contact = obstacle_penalty would pay for a contact stage it does not use";
   return {};

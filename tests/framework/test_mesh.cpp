@@ -162,4 +162,69 @@ TEST_SUITE("framework") {
     }
     CHECK_THROWS_AS(read_obj((dir / "weft_badindex.obj").string()), ConfigError);
   }
+
+  TEST_CASE("generated sheets: texture coordinates are the (u v) plane coordinates") {
+    auto m = make_l_shape({2, 1}, {5, 7}, Tessellation::irregular, 3);
+    REQUIRE(m.has_uv());
+    CHECK(m.FUV == m.F);
+    CHECK((m.UV - m.V.leftCols<2>()).norm() == 0.0);
+    place_sheet(m, SheetPlane::yz, {1, 2, 3});
+    // Placement moves the vertices, not the texture coordinates: (u, v) -> (y, z).
+    const auto dirs = texture_directions(m, 0.3);
+    for (const auto& d : dirs) CHECK((d - Eigen::Vector3d(0, std::cos(0.3), std::sin(0.3))).norm() <= 1e-12);
+  }
+
+  TEST_CASE("obj: texture coordinates are read per face corner / with seams") {
+    const auto dir = std::filesystem::temp_directory_path();
+    {
+      // Two triangles sharing the edge 1-3, with different texture coordinates on either side.
+      std::ofstream f(dir / "weft_uv.obj");
+      f << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        << "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 5\nvt 6 6\n"
+        << "f 1/1 2/2 3/3\nf 1/5 3/6 4/4\n";
+    }
+    const auto m = read_obj((dir / "weft_uv.obj").string());
+    REQUIRE(m.has_uv());
+    CHECK(m.UV.rows() == 6);
+    CHECK(m.UV.row(4) == Eigen::RowVector2d(5, 5));
+    CHECK(m.FUV.row(0) == Eigen::RowVector3i(0, 1, 2));
+    CHECK(m.FUV.row(1) == Eigen::RowVector3i(4, 5, 3));
+    // Face 0: u along x. Face 1: t(v0) = (5, 5), t(v2) = (6, 6), t(v3) = (0, 1).
+    const auto d = texture_directions(m, 0.0);
+    CHECK((d[0] - Eigen::Vector3d(1, 0, 0)).norm() <= 1e-15);
+    {
+      // Direction of increasing u on face 1: solve X = J t on its edges.
+      Eigen::Matrix<double, 3, 2> X;
+      Eigen::Matrix2d U;
+      X << 1, 0, 1, 1, 0, 0;
+      U << 1, -5, 1, -4;
+      const Eigen::Vector3d ju = (X * U.inverse()).col(0).normalized();
+      CHECK((d[1] - ju).norm() <= 1e-14);
+    }
+    {
+      std::ofstream f(dir / "weft_uv_partial.obj");
+      f << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 2 2\n"
+        << "f 1/1 2/2 3/3\nf 1 3 4\nf 1/1 3/3 4/4\n";
+    }
+    // A face without texture coordinates, and a zero-area texture triangle, named.
+    const auto p = read_obj((dir / "weft_uv_partial.obj").string());
+    try {
+      texture_directions(p, 0.0);
+      FAIL("expected a ConfigError");
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      CAPTURE(what);
+      CHECK(what.find("face 1 has no texture coordinates") != std::string::npos);
+      CHECK(what.find("face 2 has a zero-area texture triangle") != std::string::npos);
+    }
+    // Without vt lines: no texture coordinates at all.
+    {
+      std::ofstream f(dir / "weft_nouv.obj");
+      f << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    }
+    const auto n = read_obj((dir / "weft_nouv.obj").string());
+    CHECK_FALSE(n.has_uv());
+    CHECK_THROWS_WITH_AS(texture_directions(n, 0.0), doctest::Contains("no texture coordinates"), ConfigError);
+    for (const char* name : {"weft_uv.obj", "weft_uv_partial.obj", "weft_nouv.obj"}) std::filesystem::remove(dir / name);
+  }
 }

@@ -16,13 +16,33 @@ Json base_scene() {
     "time": {"dt": 0.01, "duration": 0.1, "frame_rate": 25}
   })");
 }
-std::string errors_of(const Json& doc) {
+std::string errors_of(const Json& doc, const std::string& base_dir = ".") {
   try {
-    build_scene(doc, ".", "test.json");
+    build_scene(doc, base_dir, "test.json");
   } catch (const ConfigError& e) {
     return e.what();
   }
   return "";
+}
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+/// base_scene() with an orthotropic material: Y_warp 20 MPa, Y_weft 10 MPa, G12 1 MPa, nu 0.3.
+Json orthotropic_scene() {
+  Json doc = base_scene();
+  doc["cloths"][0]["material"] = Json::parse(R"({"model": "orthotropic", "youngs_modulus_warp": "20 MPa",
+      "youngs_modulus_weft": "10 MPa", "shear_modulus": "1 MPa", "poisson_ratio": 0.3, "thickness": "0.3 mm"})");
+  return doc;
+}
+
+/// A parallelogram sheet X(u, v) = u a + v b, a = (2, 0, 0), b = (1, 1, 0) (a sheared, not
+/// conformal, texture map), two triangles; texture coordinates optional.
+std::string write_parallelogram_obj(const std::string& name, bool with_uv) {
+  const auto path = (std::filesystem::temp_directory_path() / name).string();
+  std::ofstream f(path);
+  f << "v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 1 0\n";
+  if (with_uv) f << "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+  else f << "f 1 2 3\nf 1 3 4\n";
+  return path;
 }
 }  // namespace
 
@@ -116,5 +136,156 @@ TEST_SUITE("framework") {
     }
     CHECK_THROWS_WITH_AS(load_scene(path), doctest::Contains("malformed JSON"), ConfigError);
     std::filesystem::remove(path);
+  }
+
+  TEST_CASE("scene: an orthotropic material builds with the warp from the sheet axes") {
+    Json doc = orthotropic_scene();
+    doc["cloths"][0]["mesh"]["plane"] = "xz";
+    doc["cloths"][0]["mesh"]["tessellation"] = "irregular";
+    doc["cloths"][0].erase("pins");
+    doc["cloths"][0]["material"]["warp_angle"] = "30 deg";
+    const Scene s = build_scene(doc, ".", "test.json");
+    const ShellMaterial& m = s.spec.cloths[0].material;
+    CHECK(m.orthotropic());
+    CHECK(m.youngs_modulus_warp.value() == doctest::Approx(2e7));
+    CHECK(m.youngs_modulus_weft.value() == doctest::Approx(1e7));
+    CHECK(m.shear_modulus.value() == doctest::Approx(1e6));
+    CHECK(m.eta() == doctest::Approx(0.5));
+    // bending: sqrt(Y_warp Y_weft) h^3 / (24 (1 - eta nu^2))
+    CHECK(m.bending_k() == doctest::Approx(std::sqrt(2e14) * 2.7e-11 / (24 * (1 - 0.5 * 0.09))).epsilon(1e-12));
+    REQUIRE(s.face_warp.size() == static_cast<size_t>(s.mesh.num_faces()));
+    const Eigen::Vector3d expected(std::cos(M_PI / 6), 0, std::sin(M_PI / 6));  // (u, v) -> (x, z)
+    for (const auto& w : s.face_warp) CHECK((w - expected).norm() <= 1e-12);
+    // Isotropic cloths get no direction.
+    const Scene iso = build_scene(base_scene(), ".", "test.json");
+    for (const auto& w : iso.face_warp) CHECK(w.isZero());
+  }
+
+  TEST_CASE("scene: orthotropic stability violations name the key and the inequality / all at once") {
+    struct Case {
+      const char* key;
+      Json value;
+      const char* message;
+    };
+    const Case cases[] = {
+        {"youngs_modulus_warp", -1, "cloths.0.material.youngs_modulus_warp = -1 Pa is out of range: valid > 0 Pa"},
+        {"youngs_modulus_weft", 0, "cloths.0.material.youngs_modulus_weft = 0 Pa is out of range: valid > 0 Pa"},
+        {"shear_modulus", -5, "cloths.0.material.shear_modulus = -5 Pa is out of range: valid > 0 Pa"},
+        {"poisson_ratio", 1.5, "cloths.0.material.poisson_ratio = 1.5 violates 'eta nu^2 < 1 with eta = youngs_modulus_weft / "
+                               "youngs_modulus_warp = 0.5 (here eta nu^2 = 1.125"},
+    };
+    for (const auto& c : cases) {
+      CAPTURE(c.key);
+      Json doc = orthotropic_scene();
+      doc["cloths"][0]["material"][c.key] = c.value;
+      const std::string e = errors_of(doc);
+      CAPTURE(e);
+      CHECK(contains(e, c.message));
+    }
+    // A Poisson ratio above 1 is stable when eta nu^2 < 1.
+    Json ok = orthotropic_scene();
+    ok["cloths"][0]["material"]["youngs_modulus_weft"] = "1 MPa";  // eta = 0.05
+    ok["cloths"][0]["material"]["poisson_ratio"] = 2.0;             // eta nu^2 = 0.2
+    CHECK(errors_of(ok).empty());
+    // Missing constants, and keys the chosen model does not read, all reported at once.
+    Json doc = orthotropic_scene();
+    doc["cloths"][0]["material"].erase("shear_modulus");
+    doc["cloths"][0]["material"]["youngs_modulus"] = "5 MPa";
+    doc["cloths"][0]["material"]["poisson_ratio"] = 2.0;  // eta nu^2 = 2
+    const std::string e = errors_of(doc);
+    CAPTURE(e);
+    CHECK(contains(e, "cloths.0.material.shear_modulus is required when model = orthotropic"));
+    CHECK(contains(e, "cloths.0.material.youngs_modulus is not read when model = orthotropic"));
+    CHECK(contains(e, "cloths.0.material.poisson_ratio = 2 violates 'eta nu^2 < 1"));
+    Json iso = base_scene();
+    iso["cloths"][0]["material"] = {{"youngs_modulus_warp", 1e6}, {"warp_angle", 0.3}};
+    const std::string ei = errors_of(iso);
+    CAPTURE(ei);
+    CHECK(contains(ei, "cloths.0.material.youngs_modulus_warp is only read when model = orthotropic"));
+    CHECK(contains(ei, "cloths.0.material.warp_angle is only read when model = orthotropic"));
+    iso["cloths"][0]["material"] = {{"model", "anisotropic"}};
+    CHECK(contains(errors_of(iso), "cloths.0.material.model = \"anisotropic\" is not a valid choice: valid are isotropic, orthotropic"));
+  }
+
+  TEST_CASE("scene: warp_from uv follows the OBJ texture coordinates on each face") {
+    const std::string path = write_parallelogram_obj("weft_uv_sheet.obj", true);
+    Json doc = orthotropic_scene();
+    doc["cloths"][0]["mesh"] = {{"source", "file"}, {"file", path}};
+    doc["cloths"][0].erase("pins");
+    doc["cloths"][0]["material"]["warp_from"] = "uv";
+    for (double angle : {0.0, M_PI / 2, M_PI / 4}) {
+      CAPTURE(angle);
+      doc["cloths"][0]["material"]["warp_angle"] = angle;
+      const Scene s = build_scene(doc, ".", "test.json");
+      // The image of the texture direction (cos, sin) under X = u a + v b (not the gradient of u).
+      const Eigen::Vector3d expected =
+          (std::cos(angle) * Eigen::Vector3d(2, 0, 0) + std::sin(angle) * Eigen::Vector3d(1, 1, 0)).normalized();
+      REQUIRE(s.face_warp.size() == 2);
+      for (const auto& w : s.face_warp) CHECK((w - expected).norm() <= 1e-14);
+    }
+    // warp_from = angle needs sheet axes; an OBJ without vt lines has no texture directions.
+    doc["cloths"][0]["material"]["warp_from"] = "angle";
+    CHECK(contains(errors_of(doc), "cloths.0.material.warp_from = \"angle\": an OBJ mesh (mesh.source = file) has no sheet axes"));
+    doc["cloths"][0]["material"]["warp_from"] = "uv";
+    doc["cloths"][0]["mesh"]["file"] = write_parallelogram_obj("weft_nouv_sheet.obj", false);
+    CHECK(contains(errors_of(doc), "cloths.0.material.warp_from = \"uv\": the mesh has no texture coordinates"));
+    // An isotropic cloth on the same OBJ needs none.
+    Json iso = base_scene();
+    iso["cloths"][0]["mesh"] = {{"source", "file"}, {"file", doc["cloths"][0]["mesh"]["file"]}};
+    iso["cloths"][0].erase("pins");
+    CHECK(errors_of(iso).empty());
+    // Generated sheets carry their (u, v) coordinates as texture coordinates: uv = angle.
+    Json gen = orthotropic_scene();
+    gen["cloths"][0]["material"]["warp_angle"] = 0.4;
+    const Scene a = build_scene(gen, ".", "test.json");
+    gen["cloths"][0]["material"]["warp_from"] = "uv";
+    const Scene b = build_scene(gen, ".", "test.json");
+    for (size_t f = 0; f < a.face_warp.size(); ++f) CHECK((a.face_warp[f] - b.face_warp[f]).norm() <= 1e-14);
+    std::filesystem::remove(path);
+    std::filesystem::remove(std::filesystem::temp_directory_path() / "weft_nouv_sheet.obj");
+  }
+
+  TEST_CASE("scene: rest_state keyframes / box and weight are read and validated") {
+    Json doc = base_scene();
+    doc["cloths"][0]["rest_state"] = Json::parse(R"({"keyframes": [{"time": 0, "scale": 1}, {"time": "500 ms", "scale": 1.2}],
+        "weight": 0.5, "box_min": [-0.6, -0.6, -1], "box_max": [0.05, 0.05, 1]})");
+    const Scene s = build_scene(doc, ".", "test.json");
+    const RestStateSpec& r = s.spec.cloths[0].rest_state;
+    CHECK(s.has_animated_rest());
+    CHECK(r.keyframes[1].time == doctest::Approx(0.5));
+    CHECK(r.factor(0.25) == doctest::Approx(1.05));
+    // Edges with both end points in the lower-left quarter of the 5x5 grid (spacing 0.25): 3x3 vertices.
+    const auto sel = rest_state_edges(s);
+    int n = 0;
+    for (auto e : sel) n += e;
+    CHECK(n == 3 * 2 + 3 * 2 + 4);  // 6 horizontal, 6 vertical, 4 diagonals
+    CHECK_FALSE(build_scene(base_scene(), ".", "test.json").has_animated_rest());
+
+    auto error_with = [&](const char* json) {
+      Json d = base_scene();
+      d["cloths"][0]["rest_state"] = Json::parse(json);
+      return errors_of(d);
+    };
+    CHECK(contains(error_with(R"({"weight": 0.5})"), "cloths.0.rest_state.keyframes is required but missing"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 0, "scale": 0}]})"),
+                   "cloths.0.rest_state.keyframes.0.scale = 0 is out of range: valid > 0"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 0}]})"), "cloths.0.rest_state.keyframes.0.scale is required but missing"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 0, "scale": 1}], "weight": 1.5})"),
+                   "cloths.0.rest_state.weight = 1.5 is out of range: valid in [0, 1]"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 1, "scale": 1}, {"time": 0.5, "scale": 1.1}]})"),
+                   "cloths.0.rest_state.keyframes.1.time = 0.5 violates '> keyframes.0.time = 1 (strictly increasing)'"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 0, "scale": 1}], "box_min": [0, 0, 0]})"),
+                   "cloths.0.rest_state: give both box_min and box_max"));
+    CHECK(contains(error_with(R"({"keyframes": [{"time": 0, "scale": 1}], "box_min": [5, 5, 5], "box_max": [6, 6, 6]})"),
+                   "cloths.0.rest_state: the box [5, 5, 5] .. [6, 6, 6] selects no edge"));
+    // Triangles on the box boundary torn apart at the largest keyframe scale.
+    const std::string torn = error_with(R"({"keyframes": [{"time": 0, "scale": 1}, {"time": 1, "scale": 3}, {"time": 2, "scale": 1}],
+                                           "box_min": [-0.6, -0.6, -1], "box_max": [0.05, 0.05, 1]})");
+    CAPTURE(torn);
+    CHECK(contains(torn, "cloths.0.rest_state: face"));
+    CHECK(contains(torn, "at keyframe 1 (t = 1 s, factor 1 - w + w s = 3)"));
+    CHECK(contains(torn, "violate the triangle inequality"));
+    // The same script on every edge (no box) is a uniform scaling: fine.
+    CHECK(error_with(R"({"keyframes": [{"time": 0, "scale": 1}, {"time": 1, "scale": 3}]})").empty());
   }
 }

@@ -83,6 +83,16 @@ double reference_energy(const Eigen::Matrix3d& rest, const Eigen::Matrix3d& x, d
   return 0.5 * r1.cross(r2).norm() * h * psi;
 }
 
+/// A patch of `Model` on `mesh` at positions x: the unit isotropic material, or for
+/// StvkMembrane<Orthotropic> a strongly orthotropic one with random warp directions.
+template <class Model>
+support::Patch<Model> patch_for(const MeshData& mesh, const Eigen::VectorXd& x, std::uint32_t seed) {
+  if constexpr (std::is_same_v<Model, StvkMembrane<Orthotropic>>)
+    return support::make_patch<Model>(mesh, x, {}, support::orthotropic_material(1.0, 3.0, 0.1, 0.4), support::random_warps(mesh, seed));
+  else
+    return support::make_patch<Model>(mesh, x);
+}
+
 double min_eigenvalue(const Eigen::MatrixXd& H) { return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues().minCoeff(); }
 double max_abs_eigenvalue(const Eigen::MatrixXd& H) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues().cwiseAbs().maxCoeff();
@@ -141,7 +151,7 @@ TEST_SUITE("models") {
       const MeshData m = support::triangle(a, b, c);
       auto p = support::make_patch<Membrane>(m, support::perturb(support::stack(m.V), 0.3, 50 + seed), {}, mat);
       Eigen::Matrix3d x;
-      for (int k = 0; k < 3; ++k) x.row(k) = p.state.x.segment<3>(3 * k).transpose();
+      for (int k = 0; k < 3; ++k) x.row(k) = p.state.x.template segment<3>(3 * k).transpose();
       const double ref = reference_energy(m.V, x, mat.youngs_modulus, mat.poisson_ratio, mat.thickness);
       REQUIRE(ref > 0);
       CHECK(std::abs(p.model.energy(p.state) - ref) <= 1e-13 * ref);
@@ -170,10 +180,11 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane: zero energy and gradient at rest and at a rigidly moved rest state (spec 01 §9 item 8)") {
+  TEST_CASE_TEMPLATE("stvk_membrane: zero energy and gradient at rest and at a rigidly moved rest state (spec 01 §9 item 8)", Model,
+                     StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(7, /*curved=*/true);
     const Eigen::VectorXd rest = support::stack(m.V);
-    auto p = support::make_patch<Membrane>(m, 1.1 * rest);
+    auto p = patch_for<Model>(m, 1.1 * rest, 70);
     const double g_scale = support::gradient(p.model, p.state).norm();  // forces at 10% stretch
     const double w_scale = p.model.energy(p.state);
     REQUIRE(g_scale > 0);
@@ -186,9 +197,10 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane: energy and forces and Hessian are invariant under rigid motions (spec 01 §9 item 9)") {
+  TEST_CASE_TEMPLATE("stvk_membrane: energy and forces and Hessian are invariant under rigid motions (spec 01 §9 item 9)", Model,
+                     StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(9, /*curved=*/true);
-    auto p = support::make_patch<Membrane>(m, support::perturb(support::stack(m.V), 0.2, 10));
+    auto p = patch_for<Model>(m, support::perturb(support::stack(m.V), 0.2, 10), 90);
     support::Rng rng(11);
     const Eigen::Matrix3d R = rng.rotation();
     const Eigen::Vector3d c = rng.vec3();
@@ -205,18 +217,19 @@ TEST_SUITE("models") {
     CHECK(support::relative_error(Q * H * Q.transpose(), support::dense_hessian(p.model, moved, HessianMode::exact)) <= 1e-12);
   }
 
-  TEST_CASE("stvk_membrane: forces and torques balance and H annihilates rigid motions (spec 01 §9 items 10 and 11)") {
+  TEST_CASE_TEMPLATE("stvk_membrane: forces and torques balance and H annihilates rigid motions (spec 01 §9 items 10 and 11)", Model,
+                     StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     for (const auto& c : derivative_configs()) {
       CAPTURE(c.name);
-      auto p = support::make_patch<Membrane>(c.mesh, c.x);
+      auto p = patch_for<Model>(c.mesh, c.x, 110);
       const Eigen::VectorXd g = support::gradient(p.model, p.state);
       const int n = p.state.num_vertices();
       Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
       double arm = 0;
       for (int i = 0; i < n; ++i) {
         force += g.segment<3>(3 * i);
-        torque += p.state.x.segment<3>(3 * i).cross(g.segment<3>(3 * i));
-        arm = std::max(arm, p.state.x.segment<3>(3 * i).norm());
+        torque += p.state.x.template segment<3>(3 * i).cross(g.segment<3>(3 * i));
+        arm = std::max(arm, p.state.x.template segment<3>(3 * i).norm());
       }
       REQUIRE(g.norm() > 0);
       CHECK(force.norm() <= 1e-13 * g.norm());
@@ -226,7 +239,7 @@ TEST_SUITE("models") {
       Eigen::VectorXd T(3 * n), Wx(3 * n), Wg(3 * n);
       for (int i = 0; i < n; ++i) {
         T.segment<3>(3 * i) = t;
-        Wx.segment<3>(3 * i) = w.cross(Eigen::Vector3d(p.state.x.segment<3>(3 * i)));
+        Wx.segment<3>(3 * i) = w.cross(Eigen::Vector3d(p.state.x.template segment<3>(3 * i)));
         Wg.segment<3>(3 * i) = w.cross(Eigen::Vector3d(g.segment<3>(3 * i)));
       }
       CHECK((H * T).norm() <= 1e-13 * H.norm() * t.norm());
@@ -234,9 +247,9 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane: assembled Hessian is symmetric") {
+  TEST_CASE_TEMPLATE("stvk_membrane: assembled Hessian is symmetric", Model, StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(12, /*curved=*/true);
-    auto p = support::make_patch<Membrane>(m, support::perturb(support::stack(m.V), 0.3, 13));
+    auto p = patch_for<Model>(m, support::perturb(support::stack(m.V), 0.3, 13), 120);
     for (HessianMode mode : {HessianMode::exact, HessianMode::projected}) {
       CAPTURE(enum_name(mode, hessian_mode_names));
       const BlockCsr H = support::assembled_hessian(p.model, p.state, mode);
@@ -275,10 +288,11 @@ TEST_SUITE("models") {
     CHECK(std::abs(end_force - (-h * Bw * s * Y * E11)) <= 1e-12 * h * Bw * s * Y * E11);
   }
 
-  TEST_CASE("stvk_membrane: projected Hessian is positive semi-definite") {
+  TEST_CASE_TEMPLATE("stvk_membrane: projected Hessian is positive semi-definite", Model, StvkMembrane<Isotropic>,
+                     StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(15, /*curved=*/false);
     // Compressed and perturbed: edges with r_i < 0 make the exact Hessian indefinite.
-    auto p = support::make_patch<Membrane>(m, support::perturb(0.7 * support::stack(m.V), 0.1, 16));
+    auto p = patch_for<Model>(m, support::perturb(0.7 * support::stack(m.V), 0.1, 16), 150);
     const Eigen::MatrixXd He = support::dense_hessian(p.model, p.state, HessianMode::exact);
     const Eigen::MatrixXd Hp = support::dense_hessian(p.model, p.state, HessianMode::projected);
     REQUIRE(min_eigenvalue(He) < -1e-6 * max_abs_eigenvalue(He));  // the projection has work to do
@@ -286,7 +300,7 @@ TEST_SUITE("models") {
     for (int f = 0; f < p.model.num_elements(); ++f) {
       CAPTURE(f);
       membrane::Corners x;
-      for (int k = 0; k < 3; ++k) x.row(k) = p.state.x.segment<3>(3 * m.F(f, k)).transpose();
+      for (int k = 0; k < 3; ++k) x.row(k) = p.state.x.template segment<3>(3 * m.F(f, k)).transpose();
       const Eigen::MatrixXd Hf = membrane::element_hessian(x, p.model.element(f), true);
       CHECK(min_eigenvalue(Hf) >= -1e-12 * max_abs_eigenvalue(Hf));
     }

@@ -84,9 +84,48 @@ inline ShellMaterial unit_material() {
   return m;
 }
 
+/// An orthotropic material in the warp/weft convention of `ShellMaterial` (x = warp,
+/// y = weft): Y = y_warp, eta = y_weft / y_warp, nu = nu_xy, G = 2 g12; density 1, k = 1 J.
+inline ShellMaterial orthotropic_material(double y_warp, double y_weft, double g12, double nu, double thickness = 1.0) {
+  ShellMaterial m = unit_material();
+  m.model = MaterialModel::orthotropic;
+  m.youngs_modulus_warp = y_warp;
+  m.youngs_modulus_weft = y_weft;
+  m.shear_modulus = g12;
+  m.poisson_ratio = nu;
+  m.thickness = thickness;
+  return m;
+}
+
+/// Per face of `mesh`, the unit projection of `dir` onto the face's plane.
+inline std::vector<Eigen::Vector3d> projected_warps(const MeshData& mesh, const Eigen::Vector3d& dir) {
+  std::vector<Eigen::Vector3d> w(static_cast<size_t>(mesh.F.rows()));
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+    w[static_cast<size_t>(f)] = (dir - dir.dot(n) * n).normalized();
+  }
+  return w;
+}
+
+/// Per face of `mesh`, a random unit direction in the face's plane (fixed seed).
+inline std::vector<Eigen::Vector3d> random_warps(const MeshData& mesh, std::uint32_t seed) {
+  Rng rng(seed);
+  std::vector<Eigen::Vector3d> w(static_cast<size_t>(mesh.F.rows()));
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d t1 = (b - a).normalized(), t2 = (b - a).cross(c - a).normalized().cross(t1);
+    const double phi = rng.uniform(0, 2 * std::numbers::pi);
+    w[static_cast<size_t>(f)] = std::cos(phi) * t1 + std::sin(phi) * t2;
+  }
+  return w;
+}
+
 /// A scene holding one mesh; `face_cloth[f]` picks the material of face f among `materials`
 /// (one ClothSpec per material; all faces use cloth 0 when `face_cloth` is empty).
-inline Scene make_scene(const MeshData& mesh, const std::vector<ShellMaterial>& materials, std::vector<int> face_cloth = {}) {
+/// `face_warp` is the per-face warp direction of orthotropic materials (`Scene::face_warp`).
+inline Scene make_scene(const MeshData& mesh, const std::vector<ShellMaterial>& materials, std::vector<int> face_cloth = {},
+                        std::vector<Eigen::Vector3d> face_warp = {}) {
   Scene s;
   s.mesh = TriangleMesh(mesh.V, mesh.F);
   for (size_t c = 0; c < materials.size(); ++c) {
@@ -101,10 +140,12 @@ inline Scene make_scene(const MeshData& mesh, const std::vector<ShellMaterial>& 
   s.cloth_face_offset = {0, nf};
   s.dof.assign(nv, Dof::free);
   s.vertex_motion.assign(nv, -1);
+  s.face_warp = std::move(face_warp);
   return s;
 }
-inline Scene make_scene(const MeshData& mesh, const ShellMaterial& material = unit_material()) {
-  return make_scene(mesh, std::vector<ShellMaterial>{material});
+inline Scene make_scene(const MeshData& mesh, const ShellMaterial& material = unit_material(),
+                        std::vector<Eigen::Vector3d> face_warp = {}) {
+  return make_scene(mesh, std::vector<ShellMaterial>{material}, {}, std::move(face_warp));
 }
 
 /// Lumped masses computed independently of `Scene::lumped_masses`: density * area / 3 per corner.
@@ -140,8 +181,8 @@ struct Patch {
 };
 template <class Model>
 Patch<Model> make_patch(const MeshData& mesh, const Eigen::VectorXd& x, const typename Model::Params& prm = {},
-                        const ShellMaterial& material = unit_material()) {
-  Scene scene = make_scene(mesh, material);
+                        const ShellMaterial& material = unit_material(), std::vector<Eigen::Vector3d> face_warp = {}) {
+  Scene scene = make_scene(mesh, material, std::move(face_warp));
   Model model(scene, prm);
   State state = make_state(scene, x);
   return Patch<Model>{std::move(scene), std::move(model), std::move(state)};
