@@ -179,7 +179,8 @@ State Scene::initial_state() const {
   const int n = mesh.num_vertices();
   s.x.resize(3 * n);
   s.v.resize(3 * n);
-  for (int i = 0; i < n; ++i) s.x.segment<3>(3 * i) = mesh.rest().row(i).transpose();
+  const Eigen::MatrixX3d& x0 = start.rows() == n ? start : mesh.rest();
+  for (int i = 0; i < n; ++i) s.x.segment<3>(3 * i) = x0.row(i).transpose();
   for (size_t c = 0; c < spec.cloths.size(); ++c)
     for (int i = cloth_vertex_offset[c]; i < cloth_vertex_offset[c + 1]; ++i)
       s.v.segment<3>(3 * i) = spec.cloths[c].initial_velocity;
@@ -193,9 +194,10 @@ State Scene::initial_state() const {
 
 void Scene::constrained_positions(double t, const State& s, Eigen::VectorXd& target) const {
   target = s.x;
+  const Eigen::MatrixX3d& x0 = start.rows() == mesh.num_vertices() ? start : mesh.rest();
   for (int i = 0; i < mesh.num_vertices(); ++i) {
-    if (dof[i] == Dof::pinned) target.segment<3>(3 * i) = mesh.rest().row(i).transpose();
-    else if (dof[i] == Dof::scripted) target.segment<3>(3 * i) = motions[vertex_motion[i]].apply(mesh.rest().row(i).transpose(), t);
+    if (dof[i] == Dof::pinned) target.segment<3>(3 * i) = x0.row(i).transpose();
+    else if (dof[i] == Dof::scripted) target.segment<3>(3 * i) = motions[vertex_motion[i]].apply(x0.row(i).transpose(), t);
   }
 }
 
@@ -340,6 +342,28 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
     scene.mesh = TriangleMesh(V, F);
   } catch (const ConfigError& e) {
     throw ConfigError(header, {e.what()});
+  }
+  // Initial positions: the rest positions, or a second OBJ of the same mesh.
+  scene.start = V;
+  for (size_t c = 0; c < parts.size(); ++c) {
+    const MeshSpec& m = scene.spec.cloths[c].mesh;
+    if (m.initial_file.empty()) continue;
+    const auto path = std::filesystem::path(m.initial_file).is_absolute() ? std::filesystem::path(m.initial_file)
+                                                                           : std::filesystem::path(base_dir) / m.initial_file;
+    try {
+      MeshData init = read_obj(path.lexically_normal().string());
+      if (init.V.rows() != parts[c].V.rows() || init.F != parts[c].F) {
+        errors.push_back(fmt::format("cloths.{}.mesh.initial_file = \"{}\" has {} vertices and {} faces: it must be the same "
+                                     "mesh as the rest state ({} vertices, {} faces, same faces)",
+                                     c, m.initial_file, init.V.rows(), init.F.rows(), parts[c].V.rows(), parts[c].F.rows()));
+        continue;
+      }
+      init.V *= m.scale;
+      init.V.rowwise() += m.translate.transpose();
+      scene.start.middleRows(scene.cloth_vertex_offset[c], init.V.rows()) = init.V;
+    } catch (const ConfigError& e) {
+      errors.push_back(fmt::format("cloths.{}.mesh.initial_file: {}", c, e.what()));
+    }
   }
   // Warp directions of orthotropic cloths, per face (spec 01 §10.2: a 3D unit vector in the
   // rest plane). Generated sheets carry their (u, v) coordinates as texture coordinates, so

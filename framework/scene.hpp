@@ -196,6 +196,7 @@ struct MeshSpec {
   std::string file;                        ///< OBJ path, relative to the scene file
   double scale = 1.0;                      ///< applied to file vertices (e.g. 0.01 for cm)
   Eigen::Vector3d translate = Eigen::Vector3d::Zero();  ///< [m] applied after scaling
+  std::string initial_file;                ///< optional OBJ with the initial positions (same mesh)
 
   template <class V>
   void visit(V& v) {
@@ -209,6 +210,9 @@ struct MeshSpec {
     v.field("file", file, {Unit::none, Range::any(), "OBJ file (source = file), relative to the scene file"});
     v.field("scale", scale, {Unit::none, Range::gt(0), "scale applied to OBJ vertices"});
     v.field("translate", translate, {Unit::length, Range::any(), "translation applied to OBJ vertices after scaling"});
+    v.field("initial_file", initial_file,
+            {Unit::none, Range::any(),
+             "OBJ with the initial positions (same vertices and faces; scale and translate apply); the mesh gives the rest state"});
   }
 };
 
@@ -346,6 +350,9 @@ struct Scene {
   /// (scenes built in code fill it themselves).
   std::vector<Eigen::Vector3d> face_warp;
   std::vector<Dof> dof;             ///< #V
+  /// #V by 3 initial positions; equal to the rest positions unless a cloth gives
+  /// `mesh.initial_file`. Pins hold, and scripted motions move, these positions.
+  Eigen::MatrixX3d start;
   std::vector<int> vertex_motion;   ///< #V: index into `motions` for scripted vertices, else -1
   std::vector<Motion> motions;
 
