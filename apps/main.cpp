@@ -8,6 +8,7 @@
 #include <omp.h>
 #endif
 
+#include "apps/bench_bending.hpp"
 #include "apps/runner.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
@@ -41,6 +42,24 @@ int main(int argc, char** argv) {
   cmd_list->add_option("--scene", list_scene, "also say which combinations apply to this scene and why others do not");
 
   auto* cmd_keys = app.add_subcommand("keys", "print the scene file reference (every key, unit, default and range)");
+
+  app::BenchBendingOptions bench_bending;
+  auto* cmd_bench = app.add_subcommand("bench", "benchmarks");
+  cmd_bench->require_subcommand(1);
+  auto* cmd_bench_bending = cmd_bench->add_subcommand(
+      "bending", "hinge-bending forces and Hessians: refactored vs per hinge vs autodiff (thesis Tables 5.1, 5.2)");
+  cmd_bench_bending->add_option("--out", bench_bending.out_dir, "output directory (default: out/bench_bending)");
+  cmd_bench_bending->add_flag("--quick", bench_bending.quick, "reduced run: 4 resolutions, 1 recorded state, short timings");
+  cmd_bench_bending->add_option("--scene", bench_bending.scene, "hanging-cloth scene (default: the source tree's scenes/hanging_cloth.json)");
+  cmd_bench_bending->add_option("--budget", bench_bending.budget, "timing budget per resolution and method [s] (default 0.2, quick 0.02)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_bench_bending->add_option("--max-reps", bench_bending.max_reps, "repetitions per timing at most (at least 3)")->check(CLI::PositiveNumber);
+  cmd_bench_bending->add_option("--record-dt", bench_bending.record_dt, "time step of the recording runs [s]")->check(CLI::PositiveNumber);
+  cmd_bench_bending->add_option("--record-time", bench_bending.record_time, "simulated time of the recording runs [s]")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_bending->add_option("--states", bench_bending.states, "recorded states per resolution")->check(CLI::PositiveNumber);
+  cmd_bench_bending->add_option("--resolutions", bench_bending.resolutions, "n of the n x n grids (default 11 13 ... 81)")
+      ->check(CLI::Range(3, 1000));
 
   app.footer("See README.md and docs/scene-reference.md.");
   try {
@@ -80,6 +99,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+  if (*cmd_bench_bending) return app::bench_bending(bench_bending);
   if (*cmd_keys) {
     fmt::print("{}", scene_reference());
     return 0;

@@ -4,12 +4,15 @@
 /// 2013): one scalar energy psi_e(theta_e) per interior edge of the signed dihedral angle,
 /// with the exact gradient psi' grad(theta) and Hessian psi' Hess(theta) + psi'' grad grad^T.
 ///
-/// The kernels below are per triangle (`TriangleFrame`, `half_hinge_hessian`) so that the
-/// refactored per-triangle assembly of spec 01 §6.7 can reuse them; this version assembles
-/// per hinge (§6.6), which is also what the projected mode needs.
+/// Two assembly paths share every kernel below: the refactored per-triangle assembly of
+/// spec 01 §6.7-§6.9 (Algorithms 1 and 2; the default) and the closed form per hinge
+/// (§6.6; the alternative path, the test oracle, and what the projected mode needs). A
+/// third path, forward-mode automatic differentiation, lives in bending_autodiff.hpp
+/// (benchmark and test oracle only).
 #include <Eigen/Core>
 
 #include <array>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -48,6 +51,7 @@ struct TriangleFrame {
   std::array<Eigen::Vector3d, 3> m;      ///< m_i = e_hat_i x n: unit, in-plane, outward
   std::array<double, 3> l;               ///< edge lengths l_i
   std::array<double, 3> h;               ///< altitudes from v_i onto edge i, h_i = 2A / l_i
+  std::array<double, 3> inv_h;           ///< 1 / h_i = l_i / 2A (stored: the kernels multiply, never divide)
   std::array<double, 3> cos_alpha;       ///< cos of the interior angle at v_i = -e_hat_{i+1} . e_hat_{i+2}
 };
 /// Not finite (NaN) for a zero-area triangle: check the altitudes before using it.
@@ -67,12 +71,18 @@ struct HingeAngle {
   double normal_sum;  ///< ||n + n~|| = 2 cos(theta / 2): 0 when the hinge folds flat onto itself
 };
 HingeAngle hinge_angle(const HingeFrames& f);
+/// The same from the two unit normals and the unit hinge edge as traversed by T.
+HingeAngle hinge_angle(const Eigen::Vector3d& n, const Eigen::Vector3d& nt, const Eigen::Vector3d& e_hat);
 
 /// grad(theta), 12-vector over (x0, x1, x2, x3) (spec 01 Eq. 5.4):
 ///   d/dx0 = -n / h_T(x0),  d/dx3 = -n~ / h_T~(x3),
 ///   d/dx1 = cos a_T(x2) / h_T(x1) n + cos a_T~(x2) / h_T~(x1) n~,
 ///   d/dx2 = cos a_T(x1) / h_T(x2) n + cos a_T~(x1) / h_T~(x2) n~.
 Vec12 grad_theta(const HingeFrames& f);
+/// The same for a hinge whose triangles are labelled by their own (rotated) CCW order: the
+/// hinge is edge j of T and edge k of T~, so (x0, x1, x2) = (T.v_j, T.v_{j+1}, T.v_{j+2})
+/// and x3 = T~.v_k. `grad_theta(f)` is `grad_theta(f.T, 0, f.Tt, 0)`.
+Vec12 grad_theta(const TriangleFrame& T, int j, const TriangleFrame& Tt, int k);
 
 /// Half-hinge contribution of one triangle to Hess(theta), local labels: wing 0, hinge 1, 2
 /// (spec 01 §6.6, Eq. 5.6 with the corrections of traps 1 and 2). With M_i = n m_i^T,
@@ -91,7 +101,37 @@ Mat12 hess_theta(const HingeFrames& f);
 /// Clamp the negative eigenvalues of a symmetric matrix to zero.
 Mat12 project_psd(const Mat12& H);
 
+/// Refactored per-triangle terms (spec 01 §6.7, Eq. 5.7): the sum over the triangle's three
+/// edges of psi'_e times that edge's half hinge, and the matching gradient. With
+/// gamma_i = chi_i psi'_i (0 on boundary edges), R_i = gamma_i N_i, N_i = M_i / l_i^2,
+///   d_i  = gamma_{i+2} cos a_{i+1} + gamma_{i+1} cos a_{i+2} - gamma_i
+///   H_ii = w_ii d_i S(M_i) - sym(R_{i+1}) - sym(R_{i+2}),        sym(R_i) = gamma_i S(M_i) / (2 l_i^2)
+///   H_{i,i+1} = w_{i,i+1} (d_i M_{i+1}^T + d_{i+1} M_i) + R_{i+2}^dagger,   H_ji = H_ij^T
+///   grad_i = (d_i / h_i) n,
+/// dagger = transpose iff this triangle transposes edge i+2 (it traverses the edge, from v_i
+/// to v_{i+1}, along the edge's global orientation). The thesis writes -R in the diagonal
+/// blocks; of the two triangles of an edge only the sum -(N + N~) is symmetric, so using
+/// the symmetric parts gives the same assembled matrix while every triangle's blocks, and
+/// hence the assembled matrix, are exactly symmetric.
+struct TriangleTerms {
+  std::array<Eigen::Matrix3d, 3> diag;   ///< H_ii
+  std::array<Eigen::Matrix3d, 3> upper;  ///< H_{i,i+1}
+  std::array<Eigen::Vector3d, 3> grad;   ///< (d_i / h_i) n
+};
+/// `hessian = false` fills `grad` only.
+void triangle_terms(const TriangleFrame& t, const std::array<double, 3>& gamma, const std::array<bool, 3>& transpose,
+                    bool hessian, TriangleTerms& out);
+/// The 9x9 matrix of `TriangleTerms` (local vertex order), for tests.
+Mat9 triangle_hessian(const TriangleTerms& terms);
+
 }  // namespace bending
+
+/// How `HingeBending` evaluates its exact Hessian (spec 01 §10.3, "assembly strategy").
+enum class BendingAssembly {
+  refactored,  ///< per triangle, spec 01 §6.7-§6.9 (Algorithms 1 and 2)
+  per_hinge,   ///< closed form per hinge, spec 01 §6.6
+};
+inline constexpr std::array<std::string_view, 2> bending_assembly_names = {"refactored", "per_hinge"};
 
 /// psi = kappa (theta - thetabar)^2 (discrete shells, spec 01 §6.2). theta wraps at +-pi, where
 /// this energy is discontinuous; use TanEnergy to keep hinges from folding through.
@@ -123,9 +163,12 @@ Psi psi(const HingeAngle& a, double phi_bar, double kappa) {
   return {kappa * d * d, 2.0 * kappa * d * p.d1, 2.0 * kappa * (p.d1 * p.d1 + d * p.d2)};
 }
 
-/// Rest data of one hinge.
+/// Rest data of one hinge. T = (x0, x1, x2) is the owner triangle: the one whose traversal
+/// x1 -> x2 follows the edge's global orientation, i.e. the one that transposes N0 (§6.7).
 struct HingeRest {
-  std::array<int, 4> v{};                ///< x0, x1, x2, x3
+  std::array<int, 4> v{};                ///< x0, x1, x2, x3 (also the order of its element slot)
+  std::array<int, 2> face{-1, -1};       ///< mesh faces of T (owner) and T~
+  std::array<int, 2> local{-1, -1};      ///< the hinge's local edge index in T and in T~
   int edge = -1;                         ///< mesh edge id
   double theta_bar = 0;                  ///< rest angle [rad]
   double phi_bar = 0;                    ///< phi(theta_bar)
@@ -144,6 +187,25 @@ struct HingeRest {
 /// `normal_tolerance`. Then `admissible()` is false and `energy()` is +infinity, so a line
 /// search rejects the state; `add_gradient` / `add_hessian` throw `InvariantError` (callers
 /// never evaluate derivatives at inadmissible states).
+///
+/// Element layout (`declare`). The refactored assembly produces one 3x3-vertex matrix per
+/// triangle (H^tri) plus one 4x4-vertex outer product psi'' grad grad^T per interior edge,
+/// and the element buffer needs fixed square stencils with one writer per slot. Group 0
+/// has one stencil-4 slot per hinge (x0, x1, x2, x3), written only by the hinge's owner
+/// triangle T = (x0, x1, x2): it holds the hinge's outer product and, for the first edge
+/// the triangle owns, also H^tri(T), whose vertices are the slot's first three. Triangles
+/// that own no interior edge (only near the boundary; with the low -> high orientation
+/// every triangle transposes one or two of its edges) get a stencil-3 slot in group 1.
+/// So the refactored path writes 16 E + 9 F_lone blocks, the per-hinge path (which writes
+/// the hinge's 12x12 into the same slot and zeros in group 1) the same, and the matrix
+/// pattern is exactly the hinges' pattern. Rejected alternatives: a per-triangle group of
+/// stencil 3 plus a stencil-4 group for the outer products gathers 9 F + 16 E blocks
+/// (a third more than per hinge); a per-triangle stencil of 6 (triangle + its three wings)
+/// couples the wings of different edges, which adds ~6 F spurious blocks to the pattern
+/// (fill-in for the linear solver) and gathers 36 blocks per triangle.
+///
+/// The evaluation uses scratch storage held by the model (pass A/B results), so one model
+/// must not be evaluated from two threads at once; each evaluation is parallel inside.
 template <class AngleFunction>
 class HingeBending {
  public:
@@ -151,6 +213,9 @@ class HingeBending {
     double altitude_tolerance = 1e-9;  ///< [-] a hinge is degenerate below h < tol * (rest edge length)
     double edge_tolerance = 1e-9;      ///< [-] a hinge is degenerate below l_e < tol * lbar_e
     double normal_tolerance = 1e-8;    ///< [-] TanEnergy only: degenerate below ||n + n~|| < tol (|theta| -> pi)
+    /// Exact-Hessian and gradient evaluation: per triangle (default) or per hinge. The
+    /// projected Hessian is always per hinge (the refactoring mixes hinges, spec 01 §6.12).
+    BendingAssembly assembly = BendingAssembly::refactored;
     template <class V>
     void visit(V& v) {
       v.field("altitude_tolerance", altitude_tolerance,
@@ -159,6 +224,9 @@ class HingeBending {
               {Unit::none, Range::closed_open(0, 1), "degenerate hinge: hinge edge below this times its rest length"});
       v.field("normal_tolerance", normal_tolerance,
               {Unit::none, Range::closed_open(0, 2), "tan energy: degenerate hinge when ||n + n~|| falls below this"});
+      v.choice("assembly", assembly, bending_assembly_names,
+               "exact Hessian and forces per triangle (refactored, thesis Eq. 5.7) or per hinge (closed form); "
+               "the projected Hessian is always per hinge");
     }
   };
   static constexpr std::string_view name = "hinge_bending";
@@ -166,35 +234,84 @@ class HingeBending {
   /// Rest angles and stiffnesses of every interior edge. \throws ConfigError for degenerate
   /// rest hinges, negative bending stiffness, or (TanEnergy) a rest angle with |thetabar| ~ pi.
   HingeBending(const Scene& scene, const Params& prm);
+  /// The same with the global orientation of the edges marked in `flip_edges` (#edges, by
+  /// mesh edge id) reversed to high -> low id; it decides which triangle of a hinge
+  /// transposes N0 and owns the hinge (spec 01 §9 item 13: the result must not depend on it).
+  HingeBending(const Scene& scene, const Params& prm, std::span<const unsigned char> flip_edges);
   static Checker validate(const Params& prm);
 
-  /// Registers one group of stencil 4 (x0, x1, x2, x3 per hinge).
+  /// Registers group 0 (stencil 4, one slot per hinge) and, if some triangle owns no
+  /// interior edge, group 1 (stencil 3, one slot per such triangle).
   void declare(AssemblyPlan& plan);
   /// +infinity if a hinge is degenerate.
   double energy(const State& s) const;
+  /// g += dW/dx, by `Params::assembly`.
   void add_gradient(const State& s, Eigen::VectorXd& g) const;
-  /// 12x12 per hinge; projected: eigenvalues clamped to >= 0. Parallel over hinges.
+  /// Writes every slot of the model's groups. Exact: by `Params::assembly`; projected:
+  /// 12x12 per hinge with its eigenvalues clamped to >= 0. Parallel over elements.
   void add_hessian(const State& s, ElementBuffer& buf, HessianMode mode) const;
+  /// Forces and Hessian in one pass (thesis Algorithm 1) along an explicit path:
+  /// `g` (if not null) += dW/dx, `buf` (if not null) receives the Hessian as `add_hessian`.
+  /// `mode == projected` forces the per-hinge path for the Hessian.
+  void evaluate(const State& s, Eigen::VectorXd* g, ElementBuffer* buf, HessianMode mode, BendingAssembly path) const;
   /// Appends ("bending", W).
   void energy_terms(const State& s, EnergyTerms& terms) const;
   /// False if a position is not finite or a hinge is degenerate.
   bool admissible(const State& s) const;
 
+  const Params& params() const { return prm_; }
   int num_hinges() const { return static_cast<int>(hinges_.size()); }
+  /// Hinge i. Hinges are numbered by owner triangle (mesh face order), then local edge, so
+  /// the refactored loop fills the slots in memory order; `edge` gives the mesh edge.
   const bending::HingeRest& hinge(int i) const { return hinges_[i]; }
   /// Signed dihedral angle of hinge i in state s [rad].
   double angle(const State& s, int i) const;
+  /// Triangles with at least one interior edge (the refactored path's element loop).
+  int num_active_triangles() const { return static_cast<int>(faces_.size()); }
+  /// Active triangles that own no interior edge (the slots of group 1).
+  int num_lone_triangles() const { return static_cast<int>(lone_.size()); }
+  /// Group ids from `declare` (-1 before, or for an empty group 1).
+  int hinge_group() const { return group_; }
+  int triangle_group() const { return tri_group_; }
 
  private:
   enum class Defect { none, edge, altitude, normals };
+  /// An active triangle: its vertices (CCW), the hinge of each local edge (-1: boundary),
+  /// which of those it owns (transposes), the rest length of each edge, and its slot.
+  struct Face {
+    std::array<int, 3> v{};
+    std::array<int, 3> hinge{-1, -1, -1};
+    std::array<bool, 3> owns{};
+    std::array<double, 3> rest_length{};
+    int slot_hinge = -1;  ///< hinge whose group-0 slot also holds H^tri (first owned edge), or -1
+    int slot_edge = -1;   ///< its local edge index j (slot vertex p is local vertex (j + p) mod 3)
+    int lone = -1;        ///< slot in group 1 when the triangle owns no interior edge
+  };
+
   bending::HingeFrames frames(const State& s, int i) const;
   Defect check(const bending::HingeFrames& f, const bending::HingeAngle& a, int i) const;
   [[noreturn]] void throw_degenerate(int i, Defect d, std::string_view where) const;
+  /// Finds the first degenerate hinge and throws (cold path after a failed evaluation).
+  [[noreturn]] void throw_first_degenerate(const State& s, std::string_view where) const;
+  void evaluate_refactored(const State& s, Eigen::VectorXd* g, ElementBuffer* buf, std::string_view where) const;
+  void evaluate_per_hinge(const State& s, Eigen::VectorXd* g, ElementBuffer* buf, HessianMode mode,
+                          std::string_view where) const;
 
   Params prm_;
   std::vector<bending::HingeRest> hinges_;
   std::vector<int> ids_;  // #hinges*4
-  int group_ = -1;
+  std::vector<Face> faces_;
+  std::vector<int> lone_;            // active-face index of each group-1 slot
+  std::vector<int> lone_ids_;        // #lone*3
+  std::vector<int> hinge_face_[2];   // per hinge: active-face index of T and T~
+  std::vector<int> corner_ptr_, corner_;  // per vertex: (active face * 3 + local vertex) incidences
+  int group_ = -1, tri_group_ = -1;
+  int num_vertices_ = 0;
+  // Scratch of the refactored passes (sized in the constructor; never reallocated).
+  mutable std::vector<bending::TriangleFrame> frame_;  // pass A, per active face
+  mutable std::vector<double> dpsi_, ddpsi_;           // pass B, per hinge
+  mutable std::vector<Eigen::Vector3d> corner_grad_;   // pass C, per active face corner
+  mutable std::vector<bending::Vec12> hinge_grad_;     // per-hinge path: psi' grad(theta) per hinge
 };
 
 extern template class HingeBending<ThetaEnergy>;
