@@ -1,5 +1,7 @@
 // The weft command: run scenes, list the pre-built combinations, print the scene reference.
 #include <CLI/CLI.hpp>
+
+#include <sstream>
 #include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -9,6 +11,7 @@
 #endif
 
 #include "apps/bench_bending.hpp"
+#include "apps/stability.hpp"
 #include "apps/runner.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
@@ -42,6 +45,20 @@ int main(int argc, char** argv) {
   cmd_list->add_option("--scene", list_scene, "also say which combinations apply to this scene and why others do not");
 
   auto* cmd_keys = app.add_subcommand("keys", "print the scene file reference (every key, unit, default and range)");
+
+  app::StabilityOptions stab;
+  std::string vary;
+  auto* cmd_stab = app.add_subcommand("stability", "classify runs over a grid: time step x one scene parameter, per combination");
+  cmd_stab->add_option("scene", stab.scene, "scene file (JSON)")->required();
+  cmd_stab->add_option("overrides", stab.overrides, "key=value overrides applied to every run");
+  cmd_stab->add_option("--dt", stab.dts, "time steps [s], e.g. --dt 0.004167 0.0417")->required();
+  cmd_stab->add_option("--vary", vary, "KEY=V1,V2,...: a dotted scene key and its values, e.g. cloths.0.material.youngs_modulus=1e6,1e9,1e11");
+  cmd_stab->add_option("--combos", stab.combos, "combinations to compare (default: the scene's)");
+  cmd_stab->add_option("--duration", stab.duration, "simulated time per run [s] (default: the scene's)")->check(CLI::PositiveNumber);
+  cmd_stab->add_option("--strain", stab.strain_threshold, "edge strain above which a run is 'excessive strain' (default 0.5)")
+      ->check(CLI::PositiveNumber);
+  cmd_stab->add_option("-o,--out", stab.out_dir, "output directory for stability.csv and stability_map.txt");
+  cmd_stab->add_flag("-q,--quiet", stab.quiet, "no per-run lines");
 
   app::BenchBendingOptions bench_bending;
   auto* cmd_bench = app.add_subcommand("bench", "benchmarks");
@@ -100,6 +117,20 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (*cmd_bench_bending) return app::bench_bending(bench_bending);
+  if (*cmd_stab) {
+    if (!vary.empty()) {
+      const auto eq = vary.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        fmt::print(stderr, "error: --vary {} is not of the form KEY=V1,V2,...\n", vary);
+        return app::exit_config;
+      }
+      stab.vary_key = vary.substr(0, eq);
+      std::string rest = vary.substr(eq + 1), item;
+      std::stringstream ss(rest);
+      while (std::getline(ss, item, ',')) stab.vary_values.push_back(item);
+    }
+    return app::run_stability(stab);
+  }
   if (*cmd_keys) {
     fmt::print("{}", scene_reference());
     return 0;

@@ -1,0 +1,180 @@
+#include "apps/stability.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "framework/scene.hpp"
+#include "framework/writers.hpp"
+#include "policies/registry.hpp"
+
+namespace weft::app {
+
+const char* to_string(Stability s) {
+  switch (s) {
+    case Stability::stable: return "stable";
+    case Stability::diverged: return "diverged";
+    case Stability::not_converged: return "not_converged";
+    case Stability::excessive_strain: return "excessive_strain";
+    case Stability::invalid: return "invalid";
+  }
+  return "?";
+}
+
+namespace {
+
+char symbol(Stability s) {
+  switch (s) {
+    case Stability::stable: return '.';
+    case Stability::diverged: return 'D';
+    case Stability::not_converged: return 'N';
+    case Stability::excessive_strain: return 'S';
+    case Stability::invalid: return '?';
+  }
+  return '?';
+}
+
+double max_edge_strain(const Scene& scene, const State& s) {
+  double m = 0;
+  for (const auto& e : scene.mesh.edges()) {
+    const double l0 = (scene.mesh.rest().row(e[0]) - scene.mesh.rest().row(e[1])).norm();
+    const double l = (s.position(e[0]) - s.position(e[1])).norm();
+    m = std::max(m, std::abs(l / l0 - 1.0));
+  }
+  return m;
+}
+
+StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, double dt, const std::string& value) {
+  StabilityResult res;
+  res.combo = combo;
+  res.dt = dt;
+  res.value = value;
+  std::vector<std::string> ov = opt.overrides;
+  ov.push_back(fmt::format("time.dt={}", dt));
+  ov.push_back(fmt::format("time.frame_rate={}", 1.0 / dt));  // one step per frame: any dt is valid
+  if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
+  if (!combo.empty()) ov.push_back("combo=" + combo);
+  if (!opt.vary_key.empty()) ov.push_back(opt.vary_key + "=" + value);
+  const auto start = std::chrono::steady_clock::now();
+  std::unique_ptr<AnySimulator> sim;
+  try {
+    sim = make_simulator(load_scene(opt.scene, ov));
+  } catch (const ConfigError& e) {
+    res.outcome = Stability::invalid;
+    res.message = e.what();
+    return res;
+  }
+  res.combo = std::string(sim->combo());
+  const Scene& scene = sim->scene();
+  res.steps_planned = static_cast<int>(std::lround(scene.spec.time.duration / dt));
+  const EnergyReport e0 = sim->energies();
+  const double E0 = e0.kinetic + e0.potential;
+  // Energy scale: the initial kinetic energy plus the magnitude of every potential term.
+  double scale = e0.kinetic;
+  for (const auto& [n, v] : e0.terms) scale += std::abs(v);
+  scale = std::max(scale, 1e-12);
+  long newton = 0;
+  for (int k = 0; k < res.steps_planned; ++k) {
+    const StepReport r = sim->step();
+    res.steps = k + 1;
+    newton += r.newton.iterations;
+    res.newton_max = std::max(res.newton_max, r.newton.iterations);
+    if (!r.ok()) {
+      const bool nan = r.message.find("non-finite") != std::string::npos;
+      res.outcome = nan ? Stability::diverged : Stability::not_converged;
+      res.message = fmt::format("step {}: {}: {}", r.step, r.failed_stage, r.message);
+      break;
+    }
+    const double E = r.energy.kinetic + r.energy.potential;
+    res.energy_ratio = (E - E0) / scale;
+    if (!std::isfinite(E) || E > E0 + opt.energy_growth * scale) {
+      res.outcome = Stability::diverged;
+      res.message = fmt::format("step {}: total energy rose by {:.3g} of its scale", r.step, res.energy_ratio);
+      break;
+    }
+    res.max_strain = std::max(res.max_strain, max_edge_strain(scene, sim->state()));
+    if (res.max_strain > opt.strain_threshold) {
+      res.outcome = Stability::excessive_strain;
+      res.message = fmt::format("step {}: edge strain {:.3g} > {}", r.step, res.max_strain, opt.strain_threshold);
+      break;
+    }
+  }
+  res.newton_mean = res.steps ? static_cast<double>(newton) / res.steps : 0;
+  res.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return res;
+}
+
+std::string csv_field(const std::string& s) {
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : c == '\n' ? std::string(" ") : std::string(1, c);
+  return q + "\"";
+}
+
+}  // namespace
+
+int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out) {
+  // Validate the scene and every combination before any run.
+  try {
+    const Scene scene = load_scene(opt.scene, opt.overrides);
+    for (const auto& c : opt.combos) {
+      if (c.empty()) continue;
+      std::vector<std::string> ov = opt.overrides;
+      ov.push_back("combo=" + c);
+      make_simulator(load_scene(opt.scene, ov));
+    }
+  } catch (const ConfigError& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return 2;
+  }
+  if (opt.dts.empty()) {
+    fmt::print(stderr, "error: --dt needs at least one time step\n");
+    return 2;
+  }
+  std::vector<std::string> values = opt.vary_values;
+  if (opt.vary_key.empty()) values = {""};
+  std::vector<std::string> combos = opt.combos.empty() ? std::vector<std::string>{""} : opt.combos;
+
+  std::filesystem::create_directories(opt.out_dir);
+  const std::string csv_path = (std::filesystem::path(opt.out_dir) / "stability.csv").string();
+  std::ofstream csv(csv_path);
+  csv << "combo,dt,key,value,outcome,steps,steps_planned,max_strain,energy_change,newton_mean,newton_max,wall_seconds,message\n";
+  std::vector<StabilityResult> all;
+  for (const auto& combo : combos)
+    for (double dt : opt.dts)
+      for (const auto& v : values) {
+        StabilityResult r = run_cell(opt, combo, dt, v);
+        csv << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.combo, r.dt, opt.vary_key, csv_field(r.value),
+                           to_string(r.outcome), r.steps, r.steps_planned, r.max_strain, r.energy_ratio, r.newton_mean,
+                           r.newton_max, r.wall_seconds, csv_field(r.message));
+        csv.flush();
+        if (!opt.quiet)
+          fmt::print(stderr, "{} dt={} {}={}: {} ({} of {} steps, {:.1f} s)\n", r.combo, r.dt, opt.vary_key, r.value,
+                     to_string(r.outcome), r.steps, r.steps_planned, r.wall_seconds);
+        all.push_back(std::move(r));
+      }
+  // The map: one block per combination, dt down, values across.
+  std::string map;
+  size_t k = 0;
+  for (size_t c = 0; c < combos.size(); ++c) {
+    map += fmt::format("{}  (. stable, D diverged, N not converged, S excessive strain, ? invalid)\n", all[k].combo);
+    map += fmt::format("{:>12} | {}\n", "dt \\ " + (opt.vary_key.empty() ? std::string("-") : opt.vary_key),
+                       fmt::join(values, " "));
+    for (size_t i = 0; i < opt.dts.size(); ++i) {
+      std::string row;
+      for (size_t j = 0; j < values.size(); ++j, ++k) row += std::string(std::max<size_t>(1, values[j].size()) - 1, ' ') + symbol(all[k].outcome) + " ";
+      map += fmt::format("{:>12} | {}\n", fmt::format("{:.4g}", opt.dts[i]), row);
+    }
+    map += "\n";
+  }
+  std::ofstream((std::filesystem::path(opt.out_dir) / "stability_map.txt").string()) << map;
+  fmt::print("{}", map);
+  fmt::print("table: {}\n", csv_path);
+  if (out) *out = std::move(all);
+  return 0;
+}
+
+}  // namespace weft::app
