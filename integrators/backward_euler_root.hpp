@@ -18,29 +18,20 @@ class BackwardEulerRoot {
   static constexpr std::string_view name = "backward_euler_root";
   static constexpr bool minimizes_potential = false;
 
-  struct Params : NewtonParams {
-    InitialGuess initial_guess = InitialGuess::inertial;
-    Params() { hessian = HessianChoice::exact; }  // root finding needs no definiteness
-    template <class V>
-    void visit(V& v) {
-      visit_newton(v);
-      v.choice("initial_guess", initial_guess, initial_guess_names, "start of the Newton iteration");
-    }
-    static Checker validate(const Params& p) { return validate_newton(p); }
+  /// As the incremental potential's, but exact Jacobians by default: root finding needs no
+  /// definiteness (its Newton direction always descends 1/2 ||f||^2).
+  struct Params : NewtonIntegratorParams {
+    Params() { hessian = HessianChoice::exact; }
   };
 
   explicit BackwardEulerRoot(const Params& prm) : prm_(prm) {}
 
   template <class E, class C, class L>
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
-    StepReport rep;
-    StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
-    initial_displacement(p, prm_.initial_guess, d_);
-    if (!std::isfinite(system.potential(d_))) initial_displacement(p, InitialGuess::zero, d_);
-    const NewtonFailure f = find_root(system, d_, prm_.length_tolerance * std::sqrt(system.free_mass()), prm_,
-                                      rep.newton, rep.linear, rep.times);
-    if (f.status == Status::success) commit(p, d_);
-    return finish(rep, f);
+    return newton_step(energy, contact, linear, p, prm_.initial_guess, prm_.length_tolerance, d_,
+                       [&](NewtonProblem& system, Eigen::VectorXd& d, double tol, StepReport& rep) {
+                         return find_root(system, d, tol, prm_, rep.newton, rep.linear, rep.times);
+                       });
   }
 
  private:

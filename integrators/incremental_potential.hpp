@@ -21,29 +21,16 @@ class IncrementalPotential {
   static constexpr std::string_view name = "incremental_potential";
   static constexpr bool minimizes_potential = true;
 
-  struct Params : NewtonParams {
-    InitialGuess initial_guess = InitialGuess::inertial;
-    template <class V>
-    void visit(V& v) {
-      visit_newton(v);
-      v.choice("initial_guess", initial_guess, initial_guess_names, "start of the Newton iteration");
-    }
-    static Checker validate(const Params& p) { return validate_newton(p); }
-  };
+  using Params = NewtonIntegratorParams;
 
   explicit IncrementalPotential(const Params& prm) : prm_(prm) {}
 
   template <class E, class C, class L>
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
-    StepReport rep;
-    StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
-    initial_displacement(p, prm_.initial_guess, d_);
-    // The inertial guess may leave the model's domain; start from rest instead.
-    if (!std::isfinite(system.potential(d_))) initial_displacement(p, InitialGuess::zero, d_);
-    const NewtonFailure f = minimize(system, d_, prm_.length_tolerance * std::sqrt(system.free_mass()), prm_,
-                                     shift_hint_, rep.newton, rep.linear, rep.times);
-    if (f.status == Status::success) commit(p, d_);
-    return finish(rep, f);
+    return newton_step(energy, contact, linear, p, prm_.initial_guess, prm_.length_tolerance, d_,
+                       [&](NewtonProblem& system, Eigen::VectorXd& d, double tol, StepReport& rep) {
+                         return minimize(system, d, tol, prm_, shift_hint_, rep.newton, rep.linear, rep.times);
+                       });
   }
 
  private:

@@ -7,6 +7,28 @@ namespace weft::integrators {
 
 namespace {
 
+NewtonFailure failure(NewtonReport& nr, std::string stage, Status st, std::string msg) {
+  nr.status = st;
+  nr.message = msg;
+  return NewtonFailure{st, std::move(stage), std::move(msg)};
+}
+
+// The stopping test shared by every Newton loop: converged (true, no failure), out of
+// iterations (a failure), or go on (false, no failure).
+bool should_stop(NewtonReport& nr, double r, int it, int max_iterations, const char* method, NewtonFailure& out) {
+  nr.final_residual = r;
+  if (r <= nr.tolerance) {
+    nr.stop_reason = "residual";
+    return true;
+  }
+  if (it < max_iterations) return false;
+  nr.stop_reason = "max_iterations";
+  out = failure(nr, "newton", Status::no_convergence,
+                fmt::format("{} did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, initial {:.3e})", method,
+                            nr.tolerance, it, r, nr.initial_residual));
+  return true;
+}
+
 // A descent direction of E at d. The adaptive choice keeps Newton's quadratic convergence
 // where K is positive definite; where the exact K is indefinite it shifts K towards the
 // mass matrix (the smallest shift first: the last one that worked, divided by 10), and
@@ -141,11 +163,7 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
                                     const NewtonParams& prm, NewtonReport& nr, LinearReport& linear) {
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), p(n), Kp(n), trial(n), g(n);
-  auto fail = [&](std::string stage, Status st, std::string msg) {
-    nr.status = st;
-    nr.message = msg;
-    return NewtonFailure{st, std::move(stage), std::move(msg)};
-  };
+  auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
   double e = problem.potential(d);
   if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
   problem.gradient(d, f);
@@ -158,15 +176,10 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
   double radius = prm.trust_radius * std::sqrt(problem.mass_dot(ones, ones) / 3.0);
   int rejected = 0;
   for (int it = 0;; ++it) {
-    nr.final_residual = r;
-    if (r <= nr.tolerance) {
-      nr.stop_reason = "residual";
+    if (NewtonFailure stop; should_stop(nr, r, it, prm.max_iterations, "trust-region Newton", stop)) {
+      if (stop.status != Status::success) return stop;
       break;
     }
-    if (it == prm.max_iterations)
-      return fail("newton", Status::no_convergence,
-                  fmt::format("trust-region Newton did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, radius {:.3e})",
-                              nr.tolerance, it, r, radius));
     NewtonIteration rec;
     rec.merit = e;
     rec.residual = r;
@@ -243,11 +256,7 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
   if (prm.globalization == Globalization::trust_region) return minimize_trust_region(problem, d, absolute_tolerance, prm, nr, linear);
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), ft(n), dir(n), trial(n);
-  auto fail = [&](std::string stage, Status st, std::string msg) {
-    nr.status = st;
-    nr.message = msg;
-    return NewtonFailure{st, std::move(stage), std::move(msg)};
-  };
+  auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
 
   double e = problem.potential(d);
   if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
@@ -258,16 +267,9 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
   if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient at the start of the step");
 
   for (int it = 0;; ++it) {
-    nr.final_residual = r;
-    if (r <= nr.tolerance) {
-      nr.stop_reason = "residual";
+    if (NewtonFailure stop; should_stop(nr, r, it, prm.max_iterations, "Newton", stop)) {
+      if (stop.status != Status::success) return stop;
       break;
-    }
-    if (it == prm.max_iterations) {
-      nr.stop_reason = "max_iterations";
-      return fail("newton", Status::no_convergence,
-                  fmt::format("Newton did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, initial {:.3e})",
-                              nr.tolerance, it, r, nr.initial_residual));
     }
     NewtonIteration rec;
     rec.merit = e;
@@ -334,11 +336,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
                         NewtonReport& nr, LinearReport& linear, StageTimes& times) {
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), ft(n), dir(n), rhs(n), trial(n), Kp(n);
-  auto fail = [&](std::string stage, Status st, std::string msg) {
-    nr.status = st;
-    nr.message = msg;
-    return NewtonFailure{st, std::move(stage), std::move(msg)};
-  };
+  auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
   problem.gradient(d, f);
   double r = problem.norm(f);
   double merit = 0.5 * f.squaredNorm();
@@ -347,16 +345,9 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
   if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite residual at the start of the step");
 
   for (int it = 0;; ++it) {
-    nr.final_residual = r;
-    if (r <= nr.tolerance) {
-      nr.stop_reason = "residual";
+    if (NewtonFailure stop; should_stop(nr, r, it, prm.max_iterations, "root finding", stop)) {
+      if (stop.status != Status::success) return stop;
       break;
-    }
-    if (it == prm.max_iterations) {
-      nr.stop_reason = "max_iterations";
-      return fail("newton", Status::no_convergence,
-                  fmt::format("root finding did not reach ||f|| <= {:.3e} in {} iterations (||f|| = {:.3e}, initial {:.3e})",
-                              nr.tolerance, it, r, nr.initial_residual));
     }
     NewtonIteration rec;
     rec.merit = merit;

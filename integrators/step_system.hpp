@@ -128,12 +128,39 @@ inline void commit(StepProblem& p, const Eigen::VectorXd& d) {
   p.state.v = d / p.dt;
 }
 
+/// Parameters of the Newton-based backward Euler integrators: the Newton iteration and
+/// the initial guess.
+struct NewtonIntegratorParams : NewtonParams {
+  InitialGuess initial_guess = InitialGuess::inertial;
+  template <class V>
+  void visit(V& v) {
+    visit_newton(v);
+    v.choice("initial_guess", initial_guess, initial_guess_names, "start of the Newton iteration");
+  }
+  static Checker validate(const NewtonIntegratorParams& p) { return validate_newton(p); }
+};
+
 /// The step report of a Newton outcome.
 inline StepReport& finish(StepReport& rep, const NewtonFailure& f) {
   rep.status = f.status;
   rep.failed_stage = f.stage;
   rep.message = f.message;
   return rep;
+}
+
+/// One backward Euler step solved by `solve(system, d, absolute_tolerance, report)` from
+/// the initial guess (falling back to d = 0 when the guess leaves the model's domain);
+/// commits the state only on success.
+template <class E, class C, class L, class Solve>
+StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, InitialGuess guess, double length_tolerance,
+                       Eigen::VectorXd& d, Solve&& solve) {
+  StepReport rep;
+  StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
+  initial_displacement(p, guess, d);
+  if (!std::isfinite(system.potential(d))) initial_displacement(p, InitialGuess::zero, d);
+  const NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
+  if (f.status == Status::success) commit(p, d);
+  return finish(rep, f);
 }
 
 }  // namespace weft::integrators
