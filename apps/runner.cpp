@@ -232,7 +232,19 @@ int run_scene(const RunOptions& opt) {
         code = 128 + sig;
         break;
       }
-      StepReport rep = sim->step();
+      StepReport rep;
+      try {
+        rep = sim->step();
+      } catch (const std::exception& e) {
+        // A policy's invariant broke (a bug, not an input error): report it like any failed
+        // step so that every frame and statistic written so far stays intact.
+        rep.step = steps + 1;
+        rep.time = sim->state().t + time.dt;
+        rep.dt = time.dt;
+        rep.status = Status::numerical_issue;
+        rep.failed_stage = "internal";
+        rep.message = fmt::format("internal error: {}", e.what());
+      }
       ++steps;
       newton_total += rep.newton.iterations;
       newton_max = std::max(newton_max, rep.newton.iterations);

@@ -29,6 +29,20 @@ bool should_stop(NewtonReport& nr, double r, int it, int max_iterations, const c
   return true;
 }
 
+// The optional stopping tests on the accepted step: its size, and the merit decrease of
+// the iteration relative to the decrease since the start.
+bool small_step(NewtonReport& nr, const NewtonParams& prm, double step_norm, double decrease, double total_decrease) {
+  if (prm.step_tolerance > 0 && step_norm <= prm.step_tolerance) {
+    nr.stop_reason = "step_size";
+    return true;
+  }
+  if (prm.decrease_tolerance > 0 && decrease >= 0 && decrease <= prm.decrease_tolerance * total_decrease) {
+    nr.stop_reason = "decrease";
+    return true;
+  }
+  return false;
+}
+
 // A descent direction of E at d. The adaptive choice keeps Newton's quadratic convergence
 // where K is positive definite; where the exact K is indefinite it shifts K towards the
 // mass matrix (the smallest shift first: the last one that worked, divided by 10), and
@@ -103,9 +117,15 @@ NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const 
   rec.step_norm = dir.cwiseAbs().maxCoeff();
   rec.line_search_evaluations = 0;
   d += dir;
+  nr.iterations = 1;
+  if (!std::isfinite(problem.potential(d))) {
+    nr.history.push_back(rec);
+    nr.status = Status::numerical_issue;
+    nr.message = "the linearised step left the model's domain (non-finite energy or a degenerate element)";
+    return {Status::numerical_issue, "energy", nr.message};
+  }
   problem.gradient(d, f);
   nr.final_residual = problem.norm(f);
-  nr.iterations = 1;
   nr.history.push_back(rec);
   nr.stop_reason = "single_step";
   nr.status = Status::success;
@@ -166,6 +186,7 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
   auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
   double e = problem.potential(d);
   if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
+  const double e0 = e;
   problem.gradient(d, f);
   double r = problem.norm(f);
   nr.initial_residual = r;
@@ -234,6 +255,11 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
       rec.step_length = 1.0;
       rec.step_norm = p.cwiseAbs().maxCoeff();
       rejected = 0;
+      if (small_step(nr, prm, rec.step_norm, actual, e0 - e)) {
+        nr.history.push_back(rec);
+        nr.final_residual = r;
+        break;
+      }
     } else {
       rec.step_length = 0.0;
       // A step rejected because its decrease is below round-off: converged to precision.
@@ -260,6 +286,7 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
 
   double e = problem.potential(d);
   if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the initial guess is not admissible (non-finite energy)");
+  const double e0 = e;
   problem.gradient(d, f);
   double r = problem.norm(f);
   nr.initial_residual = r;
@@ -322,11 +349,16 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     rec.step_length = ls.step;
     rec.step_norm = ls.step * dir.cwiseAbs().maxCoeff();
     d += ls.step * dir;
+    const double decrease = e - ls.value;
     e = ls.value;
     problem.gradient(d, f);
     r = problem.norm(f);
     nr.history.push_back(rec);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient after the Newton update");
+    if (small_step(nr, prm, rec.step_norm, decrease, e0 - e)) {
+      nr.final_residual = r;
+      break;
+    }
   }
   nr.status = Status::success;
   return {};
@@ -340,6 +372,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
   problem.gradient(d, f);
   double r = problem.norm(f);
   double merit = 0.5 * f.squaredNorm();
+  const double merit0 = merit;
   nr.initial_residual = r;
   nr.tolerance = prm.relative_tolerance * r + absolute_tolerance;
   if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite residual at the start of the step");
@@ -402,9 +435,14 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
     nr.history.back().step_norm = ls.step * dir.cwiseAbs().maxCoeff();
     d += ls.step * dir;
     problem.gradient(d, f);
+    const double decrease = merit - 0.5 * f.squaredNorm();
     merit = 0.5 * f.squaredNorm();
     r = problem.norm(f);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite residual after the Newton update");
+    if (small_step(nr, prm, nr.history.back().step_norm, decrease, merit0 - merit)) {
+      nr.final_residual = r;
+      break;
+    }
   }
   nr.status = Status::success;
   return {};

@@ -72,6 +72,9 @@ struct NewtonParams {
   int max_iterations = 100;           ///< Newton iterations per step
   double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
   double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
+  double step_tolerance = 0;          ///< [m] also stop when an accepted step moves no vertex farther (0: off)
+  double decrease_tolerance = 0;      ///< also stop when an iteration decreases the merit by less than
+                                      ///< this fraction of the decrease so far (0: off)
   HessianChoice hessian = HessianChoice::adaptive;
   double min_shift = 1e-4;            ///< adaptive: first shift tried, relative to the mass
   double max_shift = 1e2;             ///< adaptive: beyond this, project per element instead
@@ -87,6 +90,10 @@ struct NewtonParams {
             {Unit::none, Range::closed(0, 1), "stop when ||f||_M^-1 <= relative_tolerance ||f(d0)||_M^-1 + absolute"});
     v.field("length_tolerance", length_tolerance,
             {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
+    v.field("step_tolerance", step_tolerance,
+            {Unit::length, Range::ge(0), "also stop when an accepted step moves no vertex farther than this (0: off)"});
+    v.field("decrease_tolerance", decrease_tolerance,
+            {Unit::none, Range::closed(0, 1), "also stop when an iteration decreases the merit by less than this fraction of the decrease so far (0: off)"});
     v.choice("hessian", hessian, hessian_choice_names,
              "adaptive: exact while K is positive definite, else shifted K + tau M~, else per-element projection");
     v.choice("line_search", line_search, line_search_names, "globalisation on E_inc");

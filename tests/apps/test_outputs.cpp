@@ -131,3 +131,21 @@ TEST_SUITE("apps") {
     CHECK(count_files(out, ".tmp") == 0);
   }
 }
+
+TEST_SUITE("apps") {
+  TEST_CASE("run: a diverging configuration ends with the failure report and exit code 3") {
+    json s = small_scene();
+    s["combo"] = "cloth_lie_direct";
+    s["cloths"][0]["initial_velocity"] = {0, 0, 1e300};  // the first linearised step leaves the doubles
+    const auto dir = temp_dir("run_diverge");
+    const std::string path = write_file(dir / "scene.json", s.dump(2));
+    const Result r = run_weft(fmt::format("run {} --out {}", path, (dir / "out").string()));
+    CAPTURE(r.output);
+    CHECK(r.code == 3);
+    const json summary = json::parse(slurp(dir / "out" / "summary.json"));
+    CHECK(summary["status"] == "failed");
+    CHECK(summary["failure"]["status"] == "numerical_issue");
+    CHECK(summary["failure"]["step"] == 1);
+    CHECK(read_jsonl(dir / "out" / "stats.jsonl").size() == 1u);
+  }
+}

@@ -228,3 +228,78 @@ TEST_SUITE("integrators") {
     CHECK((ip.state().x - root.state().x).norm() <= 1e-6 * ip.state().x.norm());
   }
 }
+
+TEST_SUITE("integrators") {
+  TEST_CASE("newton: quadratic convergence near the solution (measured rate)") {
+    Scene scene = sheet("{}", R"([{"vertices": [0, 5]}])");
+    ClothIpDirect::Params prm{};
+    prm.integrator.hessian = integrators::HessianChoice::exact;
+    prm.integrator.relative_tolerance = 1e-9;  // the round-off floor here is ~1e-10 relative
+    prm.integrator.length_tolerance = 0;
+    ClothIpDirect sim(scene, prm);
+    for (int k = 0; k < 3; ++k) {
+      const StepReport r0 = sim.step();
+      REQUIRE_MESSAGE(r0.ok(), r0.message);
+    }
+    State& s = sim.state();
+    for (int i = 0; i < s.num_vertices(); ++i) s.velocity(i) += Eigen::Vector3d(0, 0, 0.5 * std::sin(1.1 * i));  // a real solve
+    const StepReport r = sim.step();
+    REQUIRE(r.ok());
+    // The Newton decrement lambda^2 = f^T K^-1 f (= -slope of the full Newton step) is the
+    // affine-invariant measure of the distance to the solution; quadratic convergence
+    // doubles its exponent per iteration.
+    std::vector<double> dec;
+    for (const auto& it : r.newton.history) dec.push_back(-it.directional_derivative);
+    REQUIRE(dec.size() >= 4);
+    for (const auto& it : r.newton.history) REQUIRE(it.step_length == 1.0);
+    const size_t k = dec.size() - 2;
+    const double order = std::log(dec[k + 1] / dec[k]) / std::log(dec[k] / dec[k - 1]);
+    MESSAGE("Newton decrements: " << fmt::format("{:.2e}", fmt::join(dec, ", ")) << "; order of the last step " << order);
+    CHECK(order > 1.8);
+    CHECK(order < 2.2);
+  }
+
+  TEST_CASE("newton: every line search decreases E_inc monotonically") {
+    using integrators::LineSearchKind;
+    for (auto kind : {LineSearchKind::backtracking, LineSearchKind::more_thuente, LineSearchKind::hager_zhang}) {
+      CAPTURE(static_cast<int>(kind));
+      Scene scene = sheet(R"({"time": {"dt": 0.05, "frame_rate": 20}})", R"([{"vertices": [0, 5]}])");
+      ClothIpDirect::Params prm{};
+      prm.integrator.line_search = kind;
+      prm.integrator.relative_tolerance = 1e-10;
+      ClothIpDirect sim(scene, prm);
+      int iterations = 0;
+      for (int k = 0; k < 5; ++k) {
+        const StepReport r = sim.step();
+        REQUIRE_MESSAGE(r.ok(), r.message);
+        iterations += r.newton.iterations;
+        for (size_t i = 0; i + 1 < r.newton.history.size(); ++i) {
+          const double a = r.newton.history[i].merit, b = r.newton.history[i + 1].merit;
+          // Hager-Zhang's approximate Wolfe test admits a rise below 1e-6 |E_inc| (round-off level).
+          CHECK(b <= a + (kind == LineSearchKind::hager_zhang ? 1e-6 * std::abs(a) : 0.0));
+        }
+      }
+      CHECK(iterations > 5);
+    }
+  }
+
+  TEST_CASE("newton: step-size and merit-decrease stopping criteria") {
+    Scene scene = sheet("{}", R"([{"vertices": [0, 5]}])");
+    ClothIpDirect::Params prm{};
+    prm.integrator.relative_tolerance = 1e-14;
+    prm.integrator.length_tolerance = 0;
+    prm.integrator.step_tolerance = 1.0;  // any step is "small"
+    ClothIpDirect a(scene, prm);
+    StepReport r = a.step();
+    REQUIRE(r.ok());
+    CHECK(r.newton.iterations == 1);
+    CHECK(r.newton.stop_reason == "step_size");
+    prm.integrator.step_tolerance = 0;
+    prm.integrator.decrease_tolerance = 0.5;  // stop once an iteration gains less than half of the total so far
+    ClothIpDirect b(scene, prm);
+    r = b.step();
+    REQUIRE(r.ok());
+    CHECK(r.newton.stop_reason == "decrease");
+    CHECK(r.newton.iterations >= 2);
+  }
+}
