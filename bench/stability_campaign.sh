@@ -9,13 +9,14 @@ WEFT=${WEFT:-build/release/apps/weft}
 OUT=${OUT:-out/stability}
 mkdir -p "$OUT"
 DTS="0.004166666666666667 0.020833333333333332 0.041666666666666664"
+# name|overrides (positional, before the list options)|combination
 variants=(
-  "ip_adaptive|--combos cloth_ip_direct"
-  "ip_trust_region|--combos cloth_ip_direct integrator.globalization=trust_region integrator.trust_radius=1e-3"
-  "ip_projected|--combos cloth_ip_direct integrator.hessian=projected"
-  "ip_pure_newton|--combos cloth_ip_direct integrator.line_search=full_step integrator.hessian=exact"
-  "root|--combos cloth_root_direct"
-  "lie|--combos cloth_lie_direct"
+  "ip_adaptive||cloth_ip_direct"
+  "ip_trust_region|integrator.globalization=trust_region integrator.trust_radius=1e-3|cloth_ip_direct"
+  "ip_projected|integrator.hessian=projected|cloth_ip_direct"
+  "ip_pure_newton|integrator.line_search=full_step integrator.hessian=exact|cloth_ip_direct"
+  "root||cloth_root_direct"
+  "lie||cloth_lie_direct"
 )
 grids=(
   "hinge_Y|scenes/hinge.json --duration 0.25 --vary cloths.0.material.youngs_modulus=1e6,1e8,1e11"
@@ -28,9 +29,10 @@ grids=(
 for g in "${grids[@]}"; do
   gname=${g%%|*}; gargs=${g#*|}
   for v in "${variants[@]}"; do
-    vname=${v%%|*}; vargs=${v#*|}
+    vname=${v%%|*}; rest=${v#*|}; vover=${rest%%|*}; vcombo=${rest#*|}
+    if [ -n "${ONLY:-}" ] && [[ "$vname" != $ONLY ]]; then continue; fi
     # shellcheck disable=SC2086
-    $WEFT stability $gargs $vargs --dt $DTS -o "$OUT/${gname}_${vname}" -q > "$OUT/${gname}_${vname}.txt" 2>&1 || true
+    $WEFT stability $gargs $vover --combos "$vcombo" --dt $DTS -o "$OUT/${gname}_${vname}" -q > "$OUT/${gname}_${vname}.txt" 2>&1 || true
     { echo "== $gname / $vname"; cat "$OUT/${gname}_${vname}.txt"; } >> "$OUT/summary.txt"
   done
 done

@@ -50,7 +50,8 @@ Json to_json(const LinearReport& r) {
 
 Json to_json(const NewtonReport& r, bool with_history) {
   Json j{{"status", to_string(r.status)}, {"iterations", r.iterations}, {"initial_residual", num(r.initial_residual)},
-         {"final_residual", num(r.final_residual)}, {"tolerance", num(r.tolerance)}, {"stop_reason", r.stop_reason}};
+         {"final_residual", num(r.final_residual)}, {"tolerance", num(r.tolerance)}, {"stop_reason", r.stop_reason},
+         {"method", r.method}};
   if (!r.message.empty()) j["message"] = r.message;
   if (with_history) {
     Json h = Json::array();

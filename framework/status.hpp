@@ -56,6 +56,7 @@ struct NewtonReport {
   double final_residual = 0;
   double tolerance = 0;         ///< the residual threshold that was used
   std::string stop_reason;      ///< which criterion stopped the iteration
+  std::string method;           ///< the solver: merit, globalisation, line search, Hessian choice
   std::vector<NewtonIteration> history;
   std::string message;
 };

@@ -99,6 +99,7 @@ NewtonFailure descent_direction(NewtonProblem& problem, const Eigen::VectorXd& d
 NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const NewtonParams& prm, double& shift_hint,
                               NewtonReport& nr, LinearReport& linear) {
   Eigen::VectorXd f(d.size()), dir(d.size());
+  nr.method = fmt::format("one linearised step, Hessian {}", enum_name(prm.hessian, hessian_choice_names));
   problem.gradient(d, f);
   NewtonIteration rec;
   rec.merit = problem.potential(d);
@@ -192,6 +193,7 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
   nr.initial_residual = r;
   nr.tolerance = prm.relative_tolerance * r + absolute_tolerance;
   // The radius is an RMS displacement: ||p||_M = radius * sqrt(total mass).
+  nr.method = "minimise E_inc, trust region (exact Hessian, Steihaug-Toint CG)";
   const Eigen::VectorXd ones = Eigen::VectorXd::Ones(n);
   const double max_radius = 1e3 * prm.trust_radius * std::sqrt(problem.mass_dot(ones, ones) / 3.0);
   double radius = prm.trust_radius * std::sqrt(problem.mass_dot(ones, ones) / 3.0);
@@ -280,6 +282,8 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& nr, LinearReport& linear, StageTimes& times) {
   if (prm.globalization == Globalization::trust_region) return minimize_trust_region(problem, d, absolute_tolerance, prm, nr, linear);
+  nr.method = fmt::format("minimise E_inc, line search {}, Hessian {}", enum_name(prm.line_search, line_search_names),
+                          enum_name(prm.hessian, hessian_choice_names));
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), ft(n), dir(n), trial(n);
   auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
@@ -369,6 +373,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
   const Eigen::Index n = d.size();
   Eigen::VectorXd f(n), ft(n), dir(n), rhs(n), trial(n), Kp(n);
   auto fail = [&](std::string stage, Status st, std::string msg) { return failure(nr, std::move(stage), st, std::move(msg)); };
+  nr.method = fmt::format("root finding on 1/2 |f|^2, line search {}", enum_name(prm.line_search, line_search_names));
   problem.gradient(d, f);
   double r = problem.norm(f);
   double merit = 0.5 * f.squaredNorm();

@@ -60,6 +60,7 @@ TEST_SUITE("apps") {
       CHECK(stats[k]["status"] == "success");
       CHECK(stats[k]["time"].get<double>() == doctest::Approx(0.01 * (k + 1)));
       CHECK(stats[k]["newton"]["iterations"].get<int>() >= 1);
+      CHECK(stats[k]["newton"]["method"] == "minimise E_inc, line search backtracking, Hessian adaptive");
       CHECK(stats[k]["newton"]["final_residual"].get<double>() <= stats[k]["newton"]["tolerance"].get<double>());
       for (const char* key : {"kinetic", "potential", "membrane", "bending", "gravity"}) CHECK(stats[k]["energy"].contains(key));
       CHECK(stats[k]["seconds"].contains("linear_solve"));
