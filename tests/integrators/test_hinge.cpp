@@ -48,6 +48,19 @@ TEST_SUITE("integrators") {
     CHECK(g.segment<3>(9).norm() == doctest::Approx(3.92699).epsilon(1e-5));
   }
 
+  TEST_CASE("hinge (spec 01 §7.2): the tan variant holds 12 k = 0.05 J and pushes each wing with 10 N") {
+    auto sim = make_simulator(load_scene(hinge_path(), {"combo=cloth_tan_ip_direct"}));
+    double bending = -1;
+    for (const auto& [n, v] : sim->energies().terms)
+      if (n == "bending") bending = v;
+    CHECK(bending == doctest::Approx(0.05).epsilon(1e-6));
+    const Eigen::VectorXd g = sim->potential_gradient();
+    CHECK(g.segment<3>(0).norm() == doctest::Approx(0.0).epsilon(1e-6));
+    CHECK(g.segment<3>(3).norm() == doctest::Approx(14.1421).epsilon(1e-5));
+    CHECK(g.segment<3>(6).norm() == doctest::Approx(10.0).epsilon(1e-6));
+    CHECK(g.segment<3>(9).norm() == doctest::Approx(10.0).epsilon(1e-6));
+  }
+
   TEST_CASE("hinge (spec 02 E2): the converged step matches the independent reference state") {
     // Reference of spec 02 E2 for dt = 1/240 (mpmath, 30-40 digits), in cm.
     const Eigen::Vector3d ref[4] = {{0.9618752, 0.0095364, 0.9904636}, {0.0190520, 0.2452104, 0.7547896},
