@@ -35,3 +35,14 @@ std::vector<PolicyDoc> combo_docs() {
 }
 
 }  // namespace weft::detail
+
+/// Defines the factory and docs functions of a combination in its own translation unit,
+/// next to the explicit instantiation of its simulator type:
+///   template class Simulator<...>;
+///   WEFT_DEFINE_COMBO(cloth_ip_direct, Simulator<...>)
+/// (the key must match the row of WEFT_COMBO_TABLE in registry.cpp).
+#define WEFT_DEFINE_COMBO(key, ...)                                                                                \
+  namespace combo_factories {                                                                                      \
+  std::unique_ptr<AnySimulator> make_##key(const Scene& scene) { return detail::make_combo<__VA_ARGS__>(#key, scene); } \
+  std::vector<PolicyDoc> docs_##key() { return detail::combo_docs<__VA_ARGS__>(); }                                \
+  }

@@ -5,11 +5,6 @@
 namespace weft {
 
 template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
-
-namespace combo_factories {
-using Sim = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
-std::unique_ptr<AnySimulator> make_cloth_lie_direct(const Scene& scene) { return detail::make_combo<Sim>("cloth_lie_direct", scene); }
-std::vector<PolicyDoc> docs_cloth_lie_direct() { return detail::combo_docs<Sim>(); }
-}  // namespace combo_factories
+WEFT_DEFINE_COMBO(cloth_lie_direct, Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>)
 
 }  // namespace weft

@@ -5,11 +5,6 @@
 namespace weft {
 
 template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
-
-namespace combo_factories {
-using Sim = Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
-std::unique_ptr<AnySimulator> make_cloth_root_direct(const Scene& scene) { return detail::make_combo<Sim>("cloth_root_direct", scene); }
-std::vector<PolicyDoc> docs_cloth_root_direct() { return detail::combo_docs<Sim>(); }
-}  // namespace combo_factories
+WEFT_DEFINE_COMBO(cloth_root_direct, Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>)
 
 }  // namespace weft

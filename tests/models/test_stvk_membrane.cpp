@@ -11,6 +11,7 @@
 #include "models/stvk_membrane.hpp"
 #include "tests/support/fd.hpp"
 #include "tests/support/model_fixtures.hpp"
+#include "tests/support/uniaxial.hpp"
 
 namespace {
 
@@ -266,26 +267,12 @@ TEST_SUITE("models") {
     mat.thickness = 0.2;
     const MeshData m = support::grid(5, 3, L, Bw);
     const double nu = mat.poisson_ratio, Y = mat.youngs_modulus, h = mat.thickness;
-    const double t = std::sqrt(1 - nu * (s * s - 1)), E11 = 0.5 * (s * s - 1);
+    const double t = std::sqrt(1 - nu * (s * s - 1));
     support::Rng rng(14);
     const Eigen::Matrix3d R = rng.rotation();
     const Eigen::Vector3d c = rng.vec3();
-    Eigen::VectorXd x(3 * m.V.rows());
-    for (Eigen::Index i = 0; i < m.V.rows(); ++i) x.segment<3>(3 * i) = R * Eigen::Vector3d(s * m.V(i, 0), t * m.V(i, 1), 0) + c;
-    auto p = support::make_patch<Membrane>(m, x, {}, mat);
-    const double W = p.model.energy(p.state), W_exact = L * Bw * h * 0.5 * Y * E11 * E11;
-    CHECK(std::abs(W - W_exact) <= 1e-12 * W_exact);
-    const Eigen::VectorXd f = -support::gradient(p.model, p.state);
-    const double element_force = f.cwiseAbs().maxCoeff();
-    REQUIRE(element_force > 0);
-    double end_force = 0;
-    for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
-      const double X = m.V(i, 0);
-      CAPTURE(i);
-      if (X > 1e-12 && X < L - 1e-12) CHECK(f.segment<3>(3 * i).norm() <= 1e-12 * element_force);
-      if (X > L - 1e-12) end_force += f.segment<3>(3 * i).dot(R.col(0));
-    }
-    CHECK(std::abs(end_force - (-h * Bw * s * Y * E11)) <= 1e-12 * h * Bw * s * Y * E11);
+    auto p = support::make_patch<Membrane>(m, support::uniaxial_positions(m, s, t, R, c), {}, mat);
+    support::check_uniaxial_stretch(p, m, R, L, Bw, h, s, Y);
   }
 
   TEST_CASE_TEMPLATE("stvk_membrane: projected Hessian is positive semi-definite", Model, StvkMembrane<Isotropic>,

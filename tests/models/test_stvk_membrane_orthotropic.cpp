@@ -11,6 +11,7 @@
 #include "models/stvk_membrane.hpp"
 #include "tests/support/fd.hpp"
 #include "tests/support/model_fixtures.hpp"
+#include "tests/support/uniaxial.hpp"
 
 namespace {
 
@@ -406,27 +407,13 @@ TEST_SUITE("models") {
       // Length along x. along_warp: x = warp = ahat_perp -> modulus Y, contraction nu.
       // Otherwise x = weft = ahat -> eta Y and eta nu.
       const double Yl = along_warp ? yw : yf, nul = along_warp ? nu : (yf / yw) * nu;
-      const double t = std::sqrt(1 - nul * (s * s - 1)), E11 = 0.5 * (s * s - 1);
+      const double t = std::sqrt(1 - nul * (s * s - 1));
       support::Rng rng(1300);
       const Eigen::Matrix3d R = rng.rotation();
       const Eigen::Vector3d c = rng.vec3();
-      Eigen::VectorXd x(3 * m.V.rows());
-      for (Eigen::Index i = 0; i < m.V.rows(); ++i) x.segment<3>(3 * i) = R * Eigen::Vector3d(s * m.V(i, 0), t * m.V(i, 1), 0) + c;
       const Eigen::Vector3d warp = along_warp ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, -1, 0);
-      auto p = support::make_patch<Ortho>(m, x, {}, mat, support::projected_warps(m, warp));
-      const double W = p.model.energy(p.state), W_exact = L * Bw * h * 0.5 * Yl * E11 * E11;
-      CHECK(std::abs(W - W_exact) <= 1e-12 * W_exact);
-      const Eigen::VectorXd f = -support::gradient(p.model, p.state);
-      const double element_force = f.cwiseAbs().maxCoeff();
-      REQUIRE(element_force > 0);
-      double end_force = 0;
-      for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
-        const double X = m.V(i, 0);
-        CAPTURE(i);
-        if (X > 1e-12 && X < L - 1e-12) CHECK(f.segment<3>(3 * i).norm() <= 1e-12 * element_force);
-        if (X > L - 1e-12) end_force += f.segment<3>(3 * i).dot(R.col(0));
-      }
-      CHECK(std::abs(end_force - (-h * Bw * s * Yl * E11)) <= 1e-12 * h * Bw * s * Yl * E11);
+      auto p = support::make_patch<Ortho>(m, support::uniaxial_positions(m, s, t, R, c), {}, mat, support::projected_warps(m, warp));
+      support::check_uniaxial_stretch(p, m, R, L, Bw, h, s, Yl);
     }
   }
 
