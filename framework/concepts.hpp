@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "framework/block_csr.hpp"
+#include "framework/constraints.hpp"
 #include "framework/state.hpp"
 #include "framework/status.hpp"
 
@@ -81,6 +82,12 @@ concept LinearSolver = Component<L> && std::constructible_from<L, const typename
       { l.factorize(A) } -> std::same_as<Status>;        // new values, same pattern
       { l.solve(b, x) } -> std::same_as<LinearReport>;   // x holds the initial guess on entry
     };
+
+/// Optional hook of a linear solver: the constraint set and positions of the next
+/// `factorize` (framework/constraints.hpp). Solvers without it require an unconstrained
+/// system (the integrators then filter fixed rows themselves).
+template <class L>
+concept HasSolveContext = requires(L& l, const SolveContext& ctx) { l.set_context(ctx); };
 
 /// Advances a `StepProblem` by one time step.
 ///   construction: `I(const I::Params&)`.

@@ -32,6 +32,15 @@ void LinearReport::accumulate(const LinearReport& r) {
   solve_seconds += r.solve_seconds;
   if (r.negative_pivots >= 0) negative_pivots = std::max(negative_pivots, r.negative_pivots);
   indefinite = indefinite || r.indefinite;
+  if (r.solves > 0 && r.convergence_rate > 0)
+    convergence_rate = (convergence_rate * (solves - r.solves) + r.convergence_rate * r.solves) / solves;
+  energy_error = std::max(energy_error, r.energy_error);
+  constraint_violation = std::max(constraint_violation, r.constraint_violation);
+  prefilter_seconds += r.prefilter_seconds;
+  memory_bytes = std::max(memory_bytes, r.memory_bytes);
+  levels = std::max(levels, r.levels);
+  operator_complexity = std::max(operator_complexity, r.operator_complexity);
+  if (!r.residual_history.empty()) residual_history = r.residual_history;
   if (r.status != Status::success && status == Status::success) {
     status = r.status;
     message = r.message;
@@ -44,6 +53,15 @@ Json to_json(const LinearReport& r) {
          {"solve_seconds", r.solve_seconds}};
   if (r.negative_pivots >= 0) j["negative_pivots"] = r.negative_pivots;
   j["indefinite"] = r.indefinite;
+  if (r.convergence_rate > 0) j["convergence_rate"] = num(r.convergence_rate);
+  if (r.energy_error >= 0) j["energy_error"] = num(r.energy_error);
+  if (r.constraint_violation > 0) j["constraint_violation"] = num(r.constraint_violation);
+  if (r.prefilter_seconds > 0) j["prefilter_seconds"] = r.prefilter_seconds;
+  if (r.memory_bytes > 0) j["memory_bytes"] = r.memory_bytes;
+  if (r.levels > 0) {
+    j["levels"] = r.levels;
+    j["operator_complexity"] = num(r.operator_complexity);
+  }
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }

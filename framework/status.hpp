@@ -4,6 +4,7 @@
 /// Newton, linear and contact reports of one time step; ablations, plots and benchmarks
 /// read these, never log lines.
 #include <array>
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,6 +34,15 @@ struct LinearReport {
   int negative_pivots = -1;       ///< LDL^T only: count of negative D entries (-1: unknown)
   bool indefinite = false;        ///< the solver found the matrix not positive definite
   std::string message;
+  // Iterative solvers (spec 04 §8). The criterion is ||r_i||_{M^-1} / ||r_0||_{M^-1} < eps.
+  std::vector<double> residual_history;  ///< ||r_i||_{M^-1} / ||r_0||_{M^-1}, i = 0..N (last solve)
+  double convergence_rate = 0;    ///< geometric mean rate (||r_N|| / ||r_0||)^(1/N) (mean over solves when summed)
+  double energy_error = -1;       ///< ||x - x*||_A / ||x*||_A against a known solution (-1: not computed)
+  double constraint_violation = 0;  ///< max |n^T x - value| over the constrained directions
+  double prefilter_seconds = 0;   ///< building S A S + Sigma (I - S) and S (b - A z)
+  std::size_t memory_bytes = 0;   ///< solver-owned storage (factors, hierarchy, work vectors)
+  int levels = 0;                 ///< multigrid levels (0: none)
+  double operator_complexity = 0; ///< sum_l nnz(A_l) / nnz(A_1) (multigrid)
   void accumulate(const LinearReport& r);
 };
 
