@@ -1,0 +1,81 @@
+#include "linear/prefilter.hpp"
+
+#include "framework/error.hpp"
+#include "framework/timers.hpp"
+
+namespace weft::linear {
+
+void prefilter_matrix(const BlockCsr& A, const ConstraintSet& c, BlockCsr& Ahat) {
+  WEFT_ASSERT(Ahat.num_blocks() == A.num_blocks() && Ahat.block_rows() == A.block_rows(), "{}",
+              "prefilter_matrix: Ahat must have A's pattern");
+  WEFT_ASSERT(c.num_vertices() == A.block_rows(), "constraint set of {} vertices for a matrix of {}", c.num_vertices(),
+              A.block_rows());
+  const int n = A.block_rows();
+  const auto& rp = A.row_ptr();
+  const auto& col = A.col();
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const bool ci = c.count(i) > 0;
+    const Block3 Si = ci ? c.filter(i) : Block3::Identity();
+    for (int k = rp[i]; k < rp[i + 1]; ++k) {
+      const int j = col[k];
+      const bool cj = c.count(j) > 0;
+      if (!ci && !cj) {
+        Ahat.block(k) = A.block(k);
+      } else if (!cj) {
+        Ahat.block(k) = Si * A.block(k);
+      } else {
+        const Block3 Sj = c.filter(j);
+        Ahat.block(k) = (ci ? Block3(Si * A.block(k)) : Block3(A.block(k))) * Sj;
+      }
+      if (j == i && ci) {
+        const double sigma = A.block(k).trace() / 3.0;
+        Ahat.block(k) += sigma * (Block3::Identity() - Si);
+      }
+    }
+  }
+}
+
+void prefilter_rhs(const BlockCsr& A, const ConstraintSet& c, const Eigen::VectorXd& b, Eigen::VectorXd& chat) {
+  A.multiply(c.target(), chat);
+  chat = b - chat;
+  c.filter(chat);
+}
+
+void unfilter_solution(const ConstraintSet& c, const Eigen::VectorXd& y, Eigen::VectorXd& x) {
+  x = y;
+  c.filter(x);
+  x += c.target();
+}
+
+const BlockCsr& PrefilteredSystem::matrix(const BlockCsr& A) {
+  A_ = &A;
+  if (!active()) return A;
+  ScopedTimer t(seconds_);
+  if (Ahat_.num_blocks() != A.num_blocks() || Ahat_.block_rows() != A.block_rows() || Ahat_.col() != A.col())
+    Ahat_ = A;  // new pattern: copy it once
+  prefilter_matrix(A, *ctx_.constraints, Ahat_);
+  return Ahat_;
+}
+
+const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b) {
+  if (!active()) return b;
+  WEFT_ASSERT(A_ != nullptr, "{}", "PrefilteredSystem::rhs before matrix");
+  ScopedTimer t(seconds_);
+  prefilter_rhs(*A_, *ctx_.constraints, b, chat_);
+  return chat_;
+}
+
+void PrefilteredSystem::finish(Eigen::VectorXd& y) const {
+  if (!active()) return;
+  const Eigen::VectorXd y0 = y;
+  unfilter_solution(*ctx_.constraints, y0, y);
+}
+
+double PrefilteredSystem::take_seconds() {
+  const double s = seconds_;
+  seconds_ = 0;
+  return s;
+}
+
+}  // namespace weft::linear

@@ -1,0 +1,50 @@
+#pragma once
+/// \file prefilter.hpp
+/// Prefiltering of spec 04 §7.3-7.4: the constrained problem
+///   min ||S (b - A x)||  s.t.  (I - S) x = (I - S) z
+/// becomes the SPD system of A's size and block pattern
+///   (S A S + Sigma (I - S)) y = S (b - A z),   x = z + S y,
+/// with Sigma_i = tr(A_ii)/3 per vertex (so the constrained directions' eigenvalues sit
+/// inside A's spectrum whatever the units; spec 04 §7.3 [ours]). Any SPD solver (PCG with
+/// any preconditioner, direct, PETSc) then solves the constrained problem exactly.
+#include <Eigen/Core>
+
+#include "framework/block_csr.hpp"
+#include "framework/constraints.hpp"
+
+namespace weft::linear {
+
+/// Ahat = S A S + Sigma (I - S). `Ahat` must have A's pattern (copy A once per pattern).
+void prefilter_matrix(const BlockCsr& A, const ConstraintSet& c, BlockCsr& Ahat);
+/// chat = S (b - A z).
+void prefilter_rhs(const BlockCsr& A, const ConstraintSet& c, const Eigen::VectorXd& b, Eigen::VectorXd& chat);
+/// x = z + S y (the final projection makes the constraints hold to round-off).
+void unfilter_solution(const ConstraintSet& c, const Eigen::VectorXd& y, Eigen::VectorXd& x);
+
+/// The three steps above for a solver that takes a `SolveContext`: with no (or an empty)
+/// constraint set everything passes through untouched and costs nothing.
+class PrefilteredSystem {
+ public:
+  void set_context(const SolveContext& ctx) { ctx_ = ctx; }
+  const SolveContext& context() const { return ctx_; }
+  bool active() const { return ctx_.constraints && !ctx_.constraints->empty(); }
+  /// The matrix to factorise or precondition: A itself, or Ahat.
+  const BlockCsr& matrix(const BlockCsr& A);
+  /// The right-hand side to solve with: b itself, or chat.
+  const Eigen::VectorXd& rhs(const Eigen::VectorXd& b);
+  /// In place: y -> x = z + S y (nothing without constraints).
+  void finish(Eigen::VectorXd& y) const;
+  /// The matrix handed to the last `matrix` call (the unfiltered A).
+  const BlockCsr* original() const { return A_; }
+  /// Seconds spent prefiltering since the last call (and reset).
+  double take_seconds();
+
+ private:
+  SolveContext ctx_;
+  const BlockCsr* A_ = nullptr;
+  BlockCsr Ahat_;
+  Eigen::VectorXd chat_;
+  double seconds_ = 0;
+};
+
+}  // namespace weft::linear
