@@ -47,7 +47,8 @@ class ConstraintSet {
     WEFT_ASSERT(n.allFinite(), "constraint direction of vertex {} is not finite", i);
     Eigen::Vector3d u = n;
     const double scale = n.norm();
-    for (int m = 0; m < count_[i]; ++m) u -= dirs_[i].col(m).dot(u) * dirs_[i].col(m);
+    for (int pass = 0; pass < 2; ++pass)  // Gram-Schmidt twice: orthogonal to round-off
+      for (int m = 0; m < count_[i]; ++m) u -= dirs_[i].col(m).dot(u) * dirs_[i].col(m);
     if (count_[i] == 3 || u.norm() <= 1e-8 * scale) return false;
     // value along the normalised orthogonal part: n^T x = value and x's known part.
     const Eigen::Vector3d known = z_.segment<3>(3 * i);
