@@ -58,9 +58,9 @@ void BlockCsr::filter_rows(const std::vector<unsigned char>& fixed, double diag_
   const int n = block_rows();
   for (int i = 0; i < n; ++i)
     for (int k = row_ptr_[i]; k < row_ptr_[i + 1]; ++k)
-      if (fixed[i] || fixed[col_[k]]) block(k).setZero();
+      if ((fixed[i] || fixed[col_[k]]) && !(diag_value < 0 && k == diag_[i])) block(k).setZero();
   for (int i = 0; i < n; ++i)
-    if (fixed[i]) block(diag_[i]) = diag_value * Block3::Identity();
+    if (fixed[i]) block(diag_[i]) = (diag_value < 0 ? block(diag_[i]).trace() / 3.0 : diag_value) * Block3::Identity();
 }
 
 double BlockCsr::asymmetry() const {

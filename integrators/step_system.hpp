@@ -70,11 +70,14 @@ class StepSystem final : public NewtonProblem {
     p_.plan.gather(p_.buffer, p_.matrix);
     p_.matrix.scale(dt2_);
     p_.matrix.add_diagonal((1.0 + shift) * mt_);
-    p_.matrix.filter_rows(p_.fixed, 1.0);
+    p_.matrix.filter_rows(p_.fixed, -1.0);  // fixed rows decoupled, diagonal tr(K_ii)/3
   }
   Status factorize() override {
     ScopedTimer t(times_, Stage::linear_setup);
     Status st = Status::success;
+    // Solvers that take a context get the trial positions (the rotation modes of smoothed
+    // aggregation); fixed vertices are already filtered out of the matrix above.
+    if constexpr (HasSolveContext<L>) linear_.set_context(SolveContext{nullptr, &trial_.x});
     if (!p_.pattern_analyzed) {
       st = linear_.analyze_pattern(p_.matrix);
       p_.pattern_analyzed = st == Status::success;

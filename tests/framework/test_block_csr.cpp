@@ -124,6 +124,18 @@ TEST_SUITE("framework") {
       CHECK(F.block(0, 3 * i, F.rows(), 3).colwise().norm().isOnes());
     }
     CHECK(F.block(3, 3, 12, 12).isApprox(dense.block(3, 3, 12, 12)));
+
+    // Scale-keeping filter: the fixed diagonal becomes tr(A_ii)/3 I, the couplings vanish.
+    BlockCsr B = fx.plan.pattern();
+    fx.plan.gather(buf, B);
+    B.add_diagonal(Eigen::VectorXd::Constant(B.rows(), 7.0));
+    const double expected = B.block(B.diagonal(5)).trace() / 3.0;
+    REQUIRE(std::abs(expected - 1.0) > 1.0);
+    B.filter_rows(fixed, -1.0);
+    const Eigen::MatrixXd G = B.to_dense();
+    CHECK(G.block<3, 3>(15, 15).isApprox(expected * Eigen::Matrix3d::Identity(), 1e-15));
+    CHECK(G.block(15, 0, 3, 15).norm() == 0.0);
+    CHECK(G.block(0, 15, 15, 3).norm() == 0.0);
   }
 
   TEST_CASE("BlockCsr: symmetric element matrices give a symmetric matrix - lower-only export") {
