@@ -1,11 +1,22 @@
 #!/usr/bin/env bash
-# Quick start 2: install, build, and run the test suite (the fast default suite; pass
-# --slow to run the long, labelled suite instead, as CI does in a separate job).
+# Quick start 2: install, build, and run the test suite (the fast default suite).
+#   --slow      the long, labelled suite instead (CI runs it in a separate job)
+#   --backends  install and enable the optional back ends (CHOLMOD, PETSc + MPI), build
+#               them in build/backends and run their tests
 set -euo pipefail
 cd "$(dirname "$0")/.."
-./scripts/setup.sh
-if [ "${1:-}" = "--slow" ]; then
-  ctest --preset slow
-else
-  ctest --preset release
-fi
+case "${1:-}" in
+  --slow)
+    ./scripts/setup.sh
+    ctest --preset slow ;;
+  --backends)
+    ./scripts/install_backends.sh
+    WEFT_PRESET=backends ./scripts/setup.sh
+    ctest --preset backends ;;
+  "")
+    ./scripts/setup.sh
+    ctest --preset release ;;
+  *)
+    echo "usage: $0 [--slow | --backends]" >&2
+    exit 2 ;;
+esac
