@@ -1,5 +1,7 @@
 #include "linear/direct.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <limits>
 
@@ -37,12 +39,24 @@ Status Direct::analyze_pattern(const BlockCsr& A) {
 }
 
 Status Direct::factorize(const BlockCsr& A) {
-  if (!analyzed_) return Status::invalid_input;
+  A_ = nullptr;
+  factorized_ = false;
+  if (!analyzed_) {
+    failure_ = "call analyze_pattern() before factorize()";
+    return Status::invalid_input;
+  }
+  if (pre_.active() && pre_.context().constraints->num_vertices() != A.block_rows()) {
+    failure_ = fmt::format("the constraint set has {} vertices but the matrix {} block rows",
+                           pre_.context().constraints->num_vertices(), A.block_rows());
+    return Status::invalid_input;
+  }
+  failure_ = "LDL^T factorisation failed: the matrix is numerically singular or not finite";
+  const BlockCsr& M = pre_.matrix(A);  // Ahat (same pattern as A) or A itself; timed as prefiltering
   double t = 0;
   {
     ScopedTimer timer(t);
     double* dst = lower_.valuePtr();
-    const double* src = A.values().data();
+    const double* src = M.values().data();
     for (const auto& [s, d] : map_) dst[d] = src[s];
     ldlt_.factorize(lower_);
   }
@@ -68,24 +82,53 @@ LinearReport Direct::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   r.negative_pivots = negative_pivots_;
   r.indefinite = negative_pivots_ > 0;
   if (!factorized_) {
-    r.status = Status::numerical_issue;
-    r.message = "LDL^T factorisation failed: the matrix is numerically singular or not finite";
+    r.status = A_ ? Status::numerical_issue : Status::invalid_input;
+    r.message = failure_;
     return r;
   }
   {
-    ScopedTimer timer(r.solve_seconds);
-    x = ldlt_.solve(b);
+    // The factor L (CSC: values, row indices, column starts), D, the two permutations,
+    // the matrix copy and the value map.
+    const auto& L = ldlt_.matrixL().nestedExpression();
+    r.memory_bytes = static_cast<std::size_t>(L.nonZeros()) * (sizeof(double) + sizeof(int)) +
+                     static_cast<std::size_t>(L.cols() + 1) * sizeof(int) +
+                     static_cast<std::size_t>(ldlt_.vectorD().size()) * sizeof(double) +
+                     2 * static_cast<std::size_t>(lower_.rows()) * sizeof(int) +
+                     static_cast<std::size_t>(lower_.nonZeros()) * (sizeof(double) + sizeof(int)) +
+                     map_.capacity() * sizeof(std::pair<int, int>);
   }
+  if (b.size() != A_->rows()) {
+    r.status = Status::invalid_input;
+    r.message = "right-hand side of the wrong size";
+    return r;
+  }
+  const Eigen::VectorXd& c = pre_.rhs(b);  // S (b - A z), or b itself
+  {
+    ScopedTimer timer(r.solve_seconds);
+    x = ldlt_.solve(c);
+    pre_.finish(x);  // x = z + S y
+  }
+  r.prefilter_seconds = pre_.take_seconds();
   if (!x.allFinite()) {
     r.status = Status::numerical_issue;
     r.message = "LDL^T solve produced non-finite values";
     return r;
   }
-  if (prm_.check_residual && A_) {
-    Eigen::VectorXd Ax;
-    A_->multiply(x, Ax);
-    const double nb = b.norm();
-    r.relative_residual = nb > 0 ? (b - Ax).norm() / nb : (b - Ax).norm();
+  const ConstraintSet* cs = pre_.active() ? pre_.context().constraints : nullptr;
+  if (cs) r.constraint_violation = cs->violation(x);
+  if (prm_.check_residual) {
+    // ||S (b - A x)|| / ||S b|| with the unfiltered A (S = I without constraints).
+    Eigen::VectorXd res;
+    A_->multiply(x, res);
+    res = b - res;
+    double nb = b.norm();
+    if (cs) {
+      cs->filter(res);
+      Eigen::VectorXd Sb = b;
+      cs->filter(Sb);
+      nb = Sb.norm();
+    }
+    r.relative_residual = nb > 0 ? res.norm() / nb : res.norm();
   }
   return r;
 }

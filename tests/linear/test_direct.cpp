@@ -5,6 +5,7 @@
 #include "framework/mesh_generators.hpp"
 #include "framework/triangle_mesh.hpp"
 #include "linear/direct.hpp"
+#include "tests/support/linear_fixtures.hpp"
 
 using namespace weft;
 
@@ -22,6 +23,26 @@ BlockCsr block_laplacian(const TriangleMesh& m, double k, double mass) {
   }
   A.add_diagonal(Eigen::VectorXd::Constant(A.rows(), mass));
   return A;
+}
+
+// Dense KKT solve [[A C^T][C 0]] [x; lambda] = [b; C z] of the constrained problem (spec 04 §7.1).
+Eigen::VectorXd kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
+  const int n = A.rows();
+  int m = 0;
+  for (int i = 0; i < c.num_vertices(); ++i) m += c.count(i);
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n + m, n + m);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + m);
+  K.topLeftCorner(n, n) = A.to_dense();
+  rhs.head(n) = b;
+  int row = n;
+  for (int i = 0; i < c.num_vertices(); ++i)
+    for (int k = 0; k < c.count(i); ++k, ++row) {
+      const Eigen::Vector3d nk = c.directions(i).col(k);
+      K.block<1, 3>(row, 3 * i) = nk.transpose();
+      K.block<3, 1>(3 * i, row) = nk;
+      rhs[row] = nk.dot(c.target().segment<3>(3 * i));
+    }
+  return K.fullPivLu().solve(rhs).head(n);
 }
 }  // namespace
 
@@ -60,5 +81,58 @@ TEST_SUITE("linear") {
     A = block_laplacian(mesh, 1.0, 0.0);  // pure Laplacian: singular (translations)
     CHECK(solver.factorize(A) != Status::success);
     CHECK(solver.solve(b, x).status == Status::numerical_issue);
+  }
+
+  TEST_CASE("direct: with constraints it matches the KKT solution and keeps the analysis across contact changes") {
+    const support::ClothSystem sys = support::cloth_system(9, Tessellation::irregular, support::Pins::two_sides);
+    linear::Direct solver({});
+    ConstraintSet c = sys.pins;
+    solver.set_context({&c, &sys.x});
+    REQUIRE(solver.analyze_pattern(sys.A) == Status::success);  // once: the pattern of Ahat is A's
+    support::Rng rng(9);
+    for (int round = 0; round < 3; ++round) {
+      CAPTURE(round);
+      // A changing contact set: 1 or 2 directions on a few free vertices.
+      c = sys.pins;
+      for (int i = round; i < c.num_vertices(); i += 6)
+        if (c.count(i) == 0)
+          for (int k = 0; k <= (i + round) % 2; ++k) c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
+      REQUIRE(c.constrained_vertices() > sys.pins.constrained_vertices());
+      REQUIRE(solver.factorize(sys.A) == Status::success);
+      Eigen::VectorXd x;
+      const LinearReport r = solver.solve(sys.b, x);
+      CHECK(r.status == Status::success);
+      CHECK(r.negative_pivots == 0);
+      const Eigen::VectorXd ref = kkt_solve(sys.A, sys.b, c);
+      REQUIRE(ref.norm() > 0);
+      CHECK((x - ref).norm() <= 1e-9 * ref.norm());
+      CHECK(r.constraint_violation == c.violation(x));
+      CHECK(r.constraint_violation <= 1e-14 * c.target().cwiseAbs().maxCoeff());
+      CHECK(r.relative_residual <= 1e-10);  // ||S (b - A x)|| / ||S b||
+      CHECK(r.memory_bytes > sizeof(double) * static_cast<std::size_t>(sys.A.rows()));
+      CHECK(r.prefilter_seconds > 0);
+    }
+    // Without constraints (an empty set) it solves A x = b itself.
+    const ConstraintSet none(sys.A.block_rows());
+    solver.set_context({&none, nullptr});
+    REQUIRE(solver.factorize(sys.A) == Status::success);
+    Eigen::VectorXd x;
+    const LinearReport r = solver.solve(sys.b, x);
+    const Eigen::VectorXd ref = sys.A.to_dense().llt().solve(sys.b);
+    CHECK((x - ref).norm() <= 1e-9 * ref.norm());
+    CHECK(r.constraint_violation == 0.0);
+    CHECK(r.prefilter_seconds == 0.0);
+  }
+
+  TEST_CASE("direct: a constraint set of the wrong size is refused") {
+    const support::ClothSystem sys = support::cloth_system(5, Tessellation::regular, support::Pins::boundary);
+    ConstraintSet c(3);
+    c.fix(0, Eigen::Vector3d::Zero());
+    linear::Direct solver({});
+    solver.set_context({&c, nullptr});
+    REQUIRE(solver.analyze_pattern(sys.A) == Status::success);
+    CHECK(solver.factorize(sys.A) == Status::invalid_input);
+    Eigen::VectorXd x;
+    CHECK(solver.solve(sys.b, x).status != Status::success);
   }
 }

@@ -1,0 +1,239 @@
+#pragma once
+/// \file pcg_impl.hpp
+/// Member definitions of `ModifiedPcg<P>` and `Ppcg<P>` (linear/pcg.hpp). Include this in
+/// the one translation unit that instantiates the templates for a preconditioner P; the
+/// CG loop itself is non-template (linear/pcg.cpp).
+#include <fmt/format.h>
+
+#include "framework/timers.hpp"
+#include "linear/pcg.hpp"
+
+namespace weft::linear {
+namespace detail {
+
+template <Preconditioner P>
+Status PreconditionerSlot<P>::analyze_pattern(const BlockCsr& A) {
+  built_ = false;
+  const Status s = p_.analyze_pattern(A);
+  if (s != Status::success) {
+    status_ = s;
+    message_ = fmt::format("preconditioner '{}': analyze_pattern failed ({})", P::name, to_string(s));
+    return s;
+  }
+  status_ = Status::invalid_input;  // until the first factorize
+  message_ = "call factorize() before solve()";
+  return Status::success;
+}
+
+template <Preconditioner P>
+Status PreconditionerSlot<P>::setup(const BlockCsr& M, const SolveContext& ctx) {
+  if (built_ && policy_ == PreconditionerSetup::once_per_pattern) return status_;
+  status_ = p_.setup(M, ctx);
+  ++builds_;
+  built_ = status_ == Status::success;
+  if (built_) {
+    message_.clear();
+  } else if constexpr (requires { { p_.message() } -> std::convertible_to<std::string>; }) {
+    message_ = p_.message();
+  } else {
+    message_ = fmt::format("preconditioner '{}': setup failed ({})", P::name, to_string(status_));
+  }
+  return status_;
+}
+
+template <Preconditioner P>
+bool PreconditionerSlot<P>::proves_indefinite() const {
+  if constexpr (requires { p_.inverse_blocks(); }) return status_ == Status::numerical_issue;
+  else return false;
+}
+
+template <Preconditioner P>
+PrecondView PreconditionerSlot<P>::view() const {
+  PrecondView v;
+  v.self = &p_;
+  v.apply = [](const void* self, const Eigen::VectorXd& r, Eigen::VectorXd& z) { static_cast<const P*>(self)->apply(r, z); };
+  if constexpr (requires { { p_.inverse_blocks().data() } -> std::convertible_to<const double*>; })
+    v.block_inverse = p_.inverse_blocks().data();
+  return v;
+}
+
+inline std::string size_mismatch(const ConstraintSet& c, const BlockCsr& A) {
+  return fmt::format("the constraint set has {} vertices but the matrix {} block rows", c.num_vertices(), A.block_rows());
+}
+
+/// Fills the fields every Krylov solve reports the same way.
+template <class Slot>
+void fill_common(const Slot& slot, const KrylovWork& w, LinearReport& rep) {
+  const PreconditionerInfo info = slot.get().info();
+  rep.memory_bytes += info.memory_bytes + w.bytes();
+  rep.levels = info.levels;
+  rep.operator_complexity = info.operator_complexity;
+}
+
+/// The report of a solve that could not start (no factorisation, failed setup).
+template <class Slot>
+LinearReport refuse(const Slot& slot, double setup_seconds) {
+  LinearReport rep;
+  rep.solves = 1;
+  rep.setup_seconds = setup_seconds;
+  rep.status = slot.status() == Status::success ? Status::invalid_input : slot.status();
+  rep.indefinite = slot.proves_indefinite();
+  rep.message = slot.message();
+  return rep;
+}
+
+}  // namespace detail
+
+// ---------------------------------------------------------------------------------------
+// ModifiedPcg
+
+template <Preconditioner P>
+ModifiedPcg<P>::ModifiedPcg(const Params& prm) : prm_(prm), slot_(prm.preconditioner, prm.setup) {
+  Params::validate(prm_).throw_if_failed();
+}
+
+template <Preconditioner P>
+Status ModifiedPcg<P>::analyze_pattern(const BlockCsr& A) {
+  ScopedTimer t(setup_seconds_);
+  A_ = nullptr;
+  work_.resize(A.rows());
+  return slot_.analyze_pattern(A);
+}
+
+template <Preconditioner P>
+Status ModifiedPcg<P>::factorize(const BlockCsr& A) {
+  ScopedTimer t(setup_seconds_);
+  A_ = &A;
+  const ConstraintSet* c = constraints();
+  if (c && c->num_vertices() != A.block_rows()) {
+    A_ = nullptr;
+    input_error_ = detail::size_mismatch(*c, A);
+    return Status::invalid_input;
+  }
+  input_error_.clear();
+  if (c) filters_.build(*c);
+  else filters_.clear();
+  // The preconditioner of the full, unfiltered system: it sees no constraints (spec 04 §7.5).
+  return slot_.setup(A, SolveContext{nullptr, ctx_.positions});
+}
+
+template <Preconditioner P>
+LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  const double setup_seconds = setup_seconds_;
+  setup_seconds_ = 0;
+  if (!A_ || slot_.status() != Status::success || b.size() != A_->rows()) {
+    LinearReport rep = detail::refuse(slot_, setup_seconds);
+    if (!input_error_.empty()) {
+      rep.status = Status::invalid_input;
+      rep.message = input_error_;
+    } else if (slot_.status() == Status::success) {
+      rep.status = Status::invalid_input;
+      rep.message = A_ ? "right-hand side of the wrong size" : "call factorize() before solve()";
+    }
+    return rep;
+  }
+  LinearReport rep;
+  rep.solves = 1;
+  rep.setup_seconds = setup_seconds;
+  const ConstraintSet* c = constraints();
+  {
+    ScopedTimer t(rep.solve_seconds);
+    // x0 = z on the constrained directions; the free part is 0 or (warm start) S x_in.
+    if (prm_.warm_start && x.size() == b.size()) {
+      if (c) {
+        c->filter(x);
+        x += c->target();
+      }
+    } else if (c) {
+      x = c->target();
+    } else {
+      x.setZero(b.size());
+    }
+    work_.resize(b.size());
+    detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep);
+  }
+  detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
+  rep.memory_bytes = filters_.bytes();
+  detail::fill_common(slot_, work_, rep);
+  return rep;
+}
+
+// ---------------------------------------------------------------------------------------
+// Ppcg
+
+template <Preconditioner P>
+Ppcg<P>::Ppcg(const Params& prm) : prm_(prm), slot_(prm.preconditioner, prm.setup) {
+  Params::validate(prm_).throw_if_failed();
+}
+
+template <Preconditioner P>
+Status Ppcg<P>::analyze_pattern(const BlockCsr& A) {
+  ScopedTimer t(setup_seconds_);
+  A_ = Ahat_ = nullptr;
+  work_.resize(A.rows());
+  return slot_.analyze_pattern(A);  // Ahat has A's pattern
+}
+
+template <Preconditioner P>
+Status Ppcg<P>::factorize(const BlockCsr& A) {
+  A_ = Ahat_ = nullptr;
+  const ConstraintSet* c = constraints();
+  if (c && c->num_vertices() != A.block_rows()) {
+    input_error_ = detail::size_mismatch(*c, A);
+    return Status::invalid_input;
+  }
+  input_error_.clear();
+  const BlockCsr& M = pre_.matrix(A);  // timed as prefiltering
+  A_ = &A;
+  Ahat_ = &M;
+  ScopedTimer t(setup_seconds_);
+  return slot_.setup(M, pre_.context());
+}
+
+template <Preconditioner P>
+LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  const double setup_seconds = setup_seconds_;
+  setup_seconds_ = 0;
+  if (!A_ || slot_.status() != Status::success || b.size() != A_->rows()) {
+    LinearReport rep = detail::refuse(slot_, setup_seconds);
+    if (!input_error_.empty()) {
+      rep.status = Status::invalid_input;
+      rep.message = input_error_;
+    } else if (slot_.status() == Status::success) {
+      rep.status = Status::invalid_input;
+      rep.message = A_ ? "right-hand side of the wrong size" : "call factorize() before solve()";
+    }
+    rep.prefilter_seconds = pre_.take_seconds();
+    return rep;
+  }
+  LinearReport rep;
+  rep.solves = 1;
+  rep.setup_seconds = setup_seconds;
+  const ConstraintSet* c = constraints();
+  const Eigen::VectorXd& chat = pre_.rhs(b);  // S (b - A z), or b itself
+  {
+    ScopedTimer t(rep.solve_seconds);
+    // y0 = 0 (thesis fidelity) or, warm, S (x_in - z).
+    if (prm_.warm_start && x.size() == b.size()) {
+      y_ = x;
+      if (c) {
+        y_ -= c->target();
+        c->filter(y_);
+      }
+    } else {
+      y_.setZero(b.size());
+    }
+    work_.resize(b.size());
+    detail::pcg(*Ahat_, chat, y_, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep);
+    x = y_;
+    pre_.finish(x);  // x = z + S y: constraints to round-off
+  }
+  rep.prefilter_seconds = pre_.take_seconds();
+  detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
+  rep.memory_bytes = sizeof(double) * static_cast<std::size_t>(y_.size());
+  if (c) rep.memory_bytes += sizeof(double) * (Ahat_->values().capacity() + static_cast<std::size_t>(chat.size()));
+  detail::fill_common(slot_, work_, rep);
+  return rep;
+}
+
+}  // namespace weft::linear
