@@ -11,6 +11,7 @@
 #endif
 
 #include "apps/bench_bending.hpp"
+#include "apps/bench_linear.hpp"
 #include "apps/stability.hpp"
 #include "apps/runner.hpp"
 #include "framework/scene.hpp"
@@ -78,6 +79,27 @@ int main(int argc, char** argv) {
   cmd_bench_bending->add_option("--resolutions", bench_bending.resolutions, "n of the n x n grids (default 11 13 ... 81)")
       ->check(CLI::Range(3, 1000));
 
+  app::BenchLinearOptions bench_linear;
+  auto* cmd_bench_linear = cmd_bench->add_subcommand(
+      "linear", "linear solvers on the cloth systems of thesis Table 11.1: direct, Diag-PCG, SA+PPCG, ... (spec 04 §10)");
+  cmd_bench_linear->add_option("--examples", bench_linear.examples, "pinned drooping re-entrant dropHorizontal dropVertical (default: all)");
+  cmd_bench_linear->add_option("--tessellations", bench_linear.tessellations, "regular irregular (default: both)");
+  cmd_bench_linear->add_option("--sizes", bench_linear.sizes, "grid intervals m, (m+1)^2 vertices (default: 30 40 60 80 100 150 200 300 400 600 800 1000)")
+      ->check(CLI::Range(4, 4000));
+  cmd_bench_linear->add_option("--max-vertices", bench_linear.max_vertices, "skip sizes with more vertices")->check(CLI::PositiveNumber);
+  cmd_bench_linear->add_option("--solvers", bench_linear.solvers, "solvers to compare (default: all available; see --list-solvers)");
+  cmd_bench_linear->add_flag("--list-solvers", bench_linear.list_solvers, "print the solvers of this build and exit");
+  cmd_bench_linear->add_option("--steps", bench_linear.steps, "steps per case before the cap (default: the thesis's frames at 30 fps)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_linear->add_option("--step-budget", bench_linear.step_budget, "cap: steps <= max(2, budget / vertices) (default 4e6)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_linear->add_option("--max-iterations", bench_linear.max_iterations, "CG iteration limit (default 20000)")->check(CLI::PositiveNumber);
+  cmd_bench_linear->add_option("--tolerance", bench_linear.tolerance, "relative M^-1-norm residual (default 1e-5, thesis)")
+      ->check(CLI::Range(1e-14, 0.5));
+  cmd_bench_linear->add_option("--out", bench_linear.out_dir, "output directory (default: out/bench_linear)");
+  cmd_bench_linear->add_flag("--quick", bench_linear.quick, "reduced run: m = 30 (961 vertices), 2 steps");
+  cmd_bench_linear->add_option("--threads", bench_linear.threads, "OpenMP threads (default: all)")->check(CLI::NonNegativeNumber);
+
   app.footer("See README.md and docs/scene-reference.md.");
   try {
     app.parse(argc, argv);
@@ -117,6 +139,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (*cmd_bench_bending) return app::bench_bending(bench_bending);
+  if (*cmd_bench_linear) return app::bench_linear(bench_linear);
   if (*cmd_stab) {
     if (!vary.empty()) {
       const auto eq = vary.find('=');

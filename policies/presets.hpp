@@ -10,6 +10,8 @@
 #include "integrators/incremental_potential.hpp"
 #include "integrators/linearly_implicit.hpp"
 #include "linear/direct.hpp"
+#include "linear/pcg.hpp"
+#include "linear/sa_ppcg.hpp"
 #include "models/energy_sum.hpp"
 #include "models/gravity.hpp"
 #include "models/hinge_bending.hpp"
@@ -34,6 +36,9 @@ using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPoten
 using ClothOrthoIpDirect = Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothRootDirect = Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 using ClothLieDirect = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
+using ClothIpDiagPcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPcg>;
+using ClothIpSaPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaPpcg>;
+using ClothLieSaPpcg = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::SaPpcg>;
 
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
@@ -41,5 +46,8 @@ extern template class Simulator<ClothTheta, integrators::IncrementalPotential, c
 extern template class Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaPpcg>;
+extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::SaPpcg>;
 
 }  // namespace weft

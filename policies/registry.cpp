@@ -20,7 +20,13 @@
   X(cloth_root_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "backward_euler_root", "none",   \
     "direct", "backward Euler as root finding on the residual (the thesis' comparison, ch. 6)")             \
   X(cloth_lie_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",     \
-    "direct", "one Newton step per time step (Baraff-Witkin style linearly implicit Euler)")
+    "direct", "one Newton step per time step (Baraff-Witkin style linearly implicit Euler)")                \
+  X(cloth_ip_diag_pcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
+    "diag_pcg", "as cloth_ip_direct with block-Jacobi PCG (the thesis' Diag-PCG baseline, ch. 11)")          \
+  X(cloth_ip_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
+    "sa_ppcg", "as cloth_ip_direct with smoothed-aggregation prefiltered PCG (thesis ch. 11): large cloth")  \
+  X(cloth_lie_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",   \
+    "sa_ppcg", "Baraff-Witkin linearly implicit Euler with SA+PPCG: the thesis' chapter-11 simulator")
 
 namespace weft {
 

@@ -34,7 +34,7 @@ TEST_SUITE("backends") {
       CHECK(r.levels >= 2);
       CHECK(r.setup_seconds > 0);
       CHECK(r.constraint_violation <= 1e-14);
-      CHECK(solver.threshold_used() > 0);
+      CHECK(solver.threshold_used() == 0.0);  // PETSc's default threshold (the fastest on cloth)
       MESSAGE("m " << m << ": " << r.iterations << " iterations, " << r.levels << " levels, rate " << r.convergence_rate
                    << ", threshold " << solver.threshold_used());
     }
