@@ -1,0 +1,103 @@
+// The solvers of `weft bench linear`: a template adapter from any `LinearSolver` to the
+// virtual `AnySolver`, and the list of the solvers this build provides (report order).
+#include <type_traits>
+
+#include "apps/bench_linear.hpp"
+#include "framework/concepts.hpp"
+#include "linear/direct.hpp"
+#include "linear/pcg.hpp"
+#include "linear/prefilter.hpp"
+#include "linear/sa_ppcg.hpp"
+#ifdef WEFT_WITH_CHOLMOD
+#include "linear/backends/cholmod_direct.hpp"
+#endif
+#ifdef WEFT_WITH_PETSC
+#include "linear/backends/petsc_gamg.hpp"
+#endif
+
+namespace weft::app::benchlin {
+namespace {
+
+/// `AnySolver` for a `LinearSolver` L. A solver without `set_context` (no constraint support,
+/// e.g. `linear::Direct`) gets the constrained system prefiltered by `PrefilteredSystem`
+/// (Ahat = S A S + Sigma (I - S), chat = S (b - A z), x = z + S y): the same problem.
+template <LinearSolver L>
+class Adapter final : public AnySolver {
+ public:
+  explicit Adapter(const typename L::Params& prm) : solver_(prm) {}
+  void set_context(const SolveContext& ctx) override {
+    if constexpr (HasSolveContext<L>) solver_.set_context(ctx);
+    else pre_.set_context(ctx);
+  }
+  Status analyze_pattern(const BlockCsr& A) override { return solver_.analyze_pattern(A); }
+  Status factorize(const BlockCsr& A) override {
+    if constexpr (HasSolveContext<L>) return solver_.factorize(A);
+    else return solver_.factorize(pre_.matrix(A));
+  }
+  LinearReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+    if constexpr (HasSolveContext<L>) {
+      return solver_.solve(b, x);
+    } else {
+      const Eigen::VectorXd& c = pre_.rhs(b);
+      LinearReport r = solver_.solve(c, x);
+      pre_.finish(x);
+      r.prefilter_seconds += pre_.take_seconds();
+      if (pre_.active()) r.constraint_violation = pre_.context().constraints->violation(x);
+      return r;
+    }
+  }
+  bool set_reference(const Eigen::VectorXd* x_star) override {
+    if constexpr (requires(L& l) { l.set_reference(x_star); }) {
+      solver_.set_reference(x_star);
+      return true;
+    } else {
+      return false;
+    }
+  }
+
+ private:
+  L solver_;
+  linear::PrefilteredSystem pre_;  // only for solvers without set_context
+};
+
+template <class L>
+std::function<std::unique_ptr<AnySolver>()> maker(typename L::Params prm) {
+  return [prm] { return std::unique_ptr<AnySolver>(std::make_unique<Adapter<L>>(prm)); };
+}
+
+template <class L>
+typename L::Params krylov(const SolverSettings& s) {
+  typename L::Params p;
+  p.tolerance = s.tolerance;
+  p.max_iterations = s.max_iterations;
+  return p;
+}
+
+}  // namespace
+
+std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
+  std::vector<SolverEntry> list;
+#ifdef WEFT_WITH_CHOLMOD
+  list.push_back({"cholmod", "CHOLMOD", "supernodal sparse Cholesky of the prefiltered matrix (CHOLMOD; stands in for PARDISO)", true,
+                  maker<linear::CholmodDirect>({})});
+#endif
+  list.push_back({"direct", "Eigen LDLT", "simplicial sparse LDL^T (Eigen, AMD ordering) of the prefiltered matrix", true,
+                  maker<linear::Direct>({})});
+  list.push_back({"diag_pcg", "Diag-PCG", "BW98 modified PCG, 3x3 block-Jacobi preconditioner (thesis baseline)", false,
+                  maker<linear::DiagPcg>(krylov<linear::DiagPcg>(s))});
+  list.push_back({"diag_ppcg", "Diag+PPCG", "prefiltered PCG, 3x3 block-Jacobi preconditioner of Ahat", false,
+                  maker<linear::DiagPpcg>(krylov<linear::DiagPpcg>(s))});
+  using linear::SaMpcg;
+  using linear::SaPpcg;
+  list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
+                  maker<SaPpcg>(krylov<SaPpcg>(s))});
+  list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
+                  maker<SaMpcg>(krylov<SaMpcg>(s))});
+#ifdef WEFT_WITH_PETSC
+  list.push_back({"petsc_gamg", "PETSc GAMG", "PETSc CG + GAMG (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
+                  false, maker<linear::PetscGamg>(krylov<linear::PetscGamg>(s))});
+#endif
+  return list;
+}
+
+}  // namespace weft::app::benchlin

@@ -1,0 +1,954 @@
+#include "linear/sa_amg.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <type_traits>
+
+#include "framework/error.hpp"
+#include "framework/timers.hpp"
+
+namespace weft::linear {
+
+namespace {
+
+template <int B>
+using Mat = Eigen::Matrix<double, B, B>;
+template <int B>
+using Vec = Eigen::Matrix<double, B, 1>;
+
+/// Index of block (i, j) of a view, -1 if absent.
+template <int R, int C>
+int find_block(const BsrView<R, C>& A, int i, int j) {
+  const int* first = A.col + A.row_ptr[i];
+  const int* last = A.col + A.row_ptr[i + 1];
+  const int* it = std::lower_bound(first, last, j);
+  return (it != last && *it == j) ? static_cast<int>(it - A.col) : -1;
+}
+
+/// Deterministic pseudo-random number in [-1, 1) from an index (splitmix64).
+double hash_uniform(std::uint64_t i) {
+  std::uint64_t z = i + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return static_cast<double>(z >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+}
+
+/// Symmetric inverse square root of an SPD block (eigenvalues below 1e-14 of the largest
+/// are treated as zero: the direction gets no weight).
+template <int B>
+Mat<B> inverse_sqrt(const Mat<B>& D) {
+  Eigen::SelfAdjointEigenSolver<Mat<B>> es;
+  if constexpr (B == 3)
+    es.computeDirect(D);
+  else
+    es.compute(D);
+  Vec<B> s = es.eigenvalues();
+  const double top = s.cwiseAbs().maxCoeff();
+  for (int k = 0; k < B; ++k) s[k] = s[k] > 1e-14 * top && s[k] > 0 ? 1.0 / std::sqrt(s[k]) : 0.0;
+  return es.eigenvectors() * s.asDiagonal() * es.eigenvectors().transpose();
+}
+
+template <int B>
+double measure_block(const Mat<B>& M, SocMeasure measure) {
+  switch (measure) {
+    case SocMeasure::frobenius: return M.norm();
+    case SocMeasure::two_norm: {
+      const Mat<B> G = M.transpose() * M;
+      Eigen::SelfAdjointEigenSolver<Mat<B>> es;
+      if constexpr (B == 3)
+        es.computeDirect(G, Eigen::EigenvaluesOnly);
+      else
+        es.compute(G, Eigen::EigenvaluesOnly);
+      return std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
+    }
+    case SocMeasure::spectral:
+    default:
+      if constexpr (B == 3) {
+        return sa::spectral_radius3(M);
+      } else {
+        // Gelfand's formula rho(M) = lim ||M^k||^(1/k) with k = 64 (six squarings, rescaled
+        // against overflow): an upper estimate within a factor (sqrt(B) cond(V))^(1/64),
+        // ~1.5% for near-normal blocks, at 1/20 of the cost of a Hessenberg QR eigensolve.
+        Mat<B> X = M;
+        double log_scale = 0;  // log of the factor divided out of X, accumulated for M^(2^s)
+        for (int s = 0; s < 6; ++s) {
+          const double nrm = X.norm();
+          if (!(nrm > 0)) return 0.0;
+          X /= nrm;
+          log_scale = 2.0 * (log_scale + std::log(nrm));
+          X = (X * X).eval();
+        }
+        const double nrm = X.norm();
+        if (!(nrm > 0)) return 0.0;
+        return std::exp((log_scale + std::log(nrm)) / 64.0);
+      }
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Building blocks
+// ---------------------------------------------------------------------------------------
+namespace sa {
+
+double spectral_radius3(const Eigen::Matrix3d& M) {
+  // Characteristic polynomial l^3 + a l^2 + b l + c.
+  const double a = -M.trace();
+  const double b = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0) + M(0, 0) * M(2, 2) - M(0, 2) * M(2, 0) + M(1, 1) * M(2, 2) -
+                   M(1, 2) * M(2, 1);
+  const double c = -M.determinant();
+  // Depressed cubic t^3 + p t + q with l = t - a/3.
+  const double shift = -a / 3.0;
+  const double p = b - a * a / 3.0;
+  const double q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c;
+  const double disc = 0.25 * q * q + p * p * p / 27.0;
+  const double scale = std::max(1.0, std::abs(a) * std::abs(a) + std::abs(b));
+  if (disc <= 1e-14 * scale * scale * scale) {  // three real roots (up to round-off)
+    if (p >= 0) return std::abs(shift + std::cbrt(-q));  // p ~ 0: triple root
+    const double r = 2.0 * std::sqrt(-p / 3.0);
+    const double arg = std::clamp(3.0 * q / (p * r), -1.0, 1.0);  // cos(3 phi)
+    const double phi = std::acos(arg) / 3.0;
+    double rho = 0;
+    for (int k = 0; k < 3; ++k) rho = std::max(rho, std::abs(shift + r * std::cos(phi - 2.0 * M_PI * k / 3.0)));
+    return rho;
+  }
+  const double sq = std::sqrt(disc);
+  const double t = std::cbrt(-0.5 * q + sq) + std::cbrt(-0.5 * q - sq);
+  const double l1 = t + shift;
+  // Remaining quadratic l^2 + (a + l1) l + (b + l1 (a + l1)): complex pair of modulus sqrt(const).
+  const double m2 = b + l1 * (a + l1);
+  return std::max(std::abs(l1), std::sqrt(std::max(0.0, m2)));
+}
+
+template <int B>
+double measure(const Eigen::Matrix<double, B, B>& M, SocMeasure m) {
+  return measure_block<B>(M, m);
+}
+template double measure<3>(const Eigen::Matrix<double, 3, 3>&, SocMeasure);
+template double measure<6>(const Eigen::Matrix<double, 6, 6>&, SocMeasure);
+
+template <int B>
+void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
+              std::vector<std::uint8_t>& strong) {
+  const int n = A.rows, nnz = A.nnz();
+  mu.assign(nnz, 0.0);
+  strong.assign(nnz, 0);
+  std::vector<double> Dis(static_cast<std::size_t>(B * B) * n);
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    const int kd = find_block(A, i, i);
+    Eigen::Map<Mat<B>> out(Dis.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+    if (kd < 0)
+      out.setZero();
+    else
+      out = inverse_sqrt<B>(Mat<B>(A.block(kd)));
+  }
+  // mu_ij = mu_ji: compute once for j > i, write both blocks (row i alone writes them).
+#pragma omp parallel for schedule(dynamic, 256) if (n > parallel_rows / 4)
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Map<const Mat<B>> Di(Dis.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j <= i) continue;
+      const Eigen::Map<const Mat<B>> Dj(Dis.data() + static_cast<std::ptrdiff_t>(B * B) * j);
+      const Mat<B> M = Di * Mat<B>(A.block(k)) * Dj;
+      const double m = measure_block<B>(M, measure);
+      mu[k] = m;
+      const int kt = find_block(A, j, i);
+      if (kt >= 0) mu[kt] = m;
+    }
+  }
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    double top = 0;
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) top = std::max(top, mu[k]);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      strong[k] = A.col[k] != i && top > 0 && mu[k] > theta * top;
+  }
+  // Symmetrise: strong if strong in either row (spec 04 §4.3).
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j <= i) continue;
+      const int kt = find_block(A, j, i);
+      const std::uint8_t s = strong[k] | (kt >= 0 ? strong[kt] : 0);
+      strong[k] = s;
+      if (kt >= 0) strong[kt] = s;
+    }
+}
+
+template <int B>
+int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double tau_dd, std::vector<std::uint8_t>& strong,
+                  std::vector<std::uint8_t>& special) {
+  const int n = A.rows;
+  special.assign(n, 0);
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    double sum = 0;
+    bool any = false;
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      sum += mu[k];
+      any = any || strong[k];
+    }
+    special[i] = !any || sum < tau_dd;
+  }
+  // A special node is nobody's strong neighbour; a node that thereby loses its last strong
+  // neighbour becomes special too (else pass 1 would make it a singleton aggregate).
+  for (bool changed = true; changed;) {
+    changed = false;
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+    for (int i = 0; i < n; ++i)
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+        if (strong[k] && (special[i] || special[A.col[k]])) strong[k] = 0;
+    for (int i = 0; i < n; ++i) {
+      if (special[i]) continue;
+      bool any = false;
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1] && !any; ++k) any = strong[k];
+      if (!any) special[i] = 1, changed = true;
+    }
+  }
+  return static_cast<int>(std::count(special.begin(), special.end(), 1));
+}
+
+template <int B>
+Aggregates aggregate(const BsrView<B, B>& A, const std::vector<std::uint8_t>& strong,
+                     const std::vector<std::uint8_t>& special) {
+  const int n = A.rows;
+  Aggregates out;
+  out.node_agg.assign(n, -1);
+  std::vector<int>& agg = out.node_agg;
+  std::vector<int> members, member_ptr{0};  // pass-1 members, by aggregate
+  // Pass 1: a free node whose strong neighbours are all free seeds an aggregate of them all.
+  for (int i = 0; i < n; ++i) {
+    if (special[i] || agg[i] >= 0) continue;
+    bool free = true;
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1] && free; ++k)
+      if (strong[k] && agg[A.col[k]] >= 0) free = false;
+    if (!free) continue;
+    const int a = out.count++;
+    agg[i] = a;
+    members.push_back(i);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      if (strong[k]) agg[A.col[k]] = a, members.push_back(A.col[k]);
+    member_ptr.push_back(static_cast<int>(members.size()));
+  }
+  // Pass 2: leftovers join the aggregate of a strong neighbour (one layer, original members only).
+  std::vector<int> size(out.count, 0);
+  for (int a = 0; a < out.count; ++a) {
+    size[a] = member_ptr[a + 1] - member_ptr[a];
+    for (int t = member_ptr[a]; t < member_ptr[a + 1]; ++t) {
+      const int j = members[t];
+      for (int k = A.row_ptr[j]; k < A.row_ptr[j + 1]; ++k) {
+        const int m = A.col[k];
+        if (strong[k] && agg[m] < 0 && !special[m]) agg[m] = a, ++size[a];
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i)
+    WEFT_ASSERT(special[i] || agg[i] >= 0, "node {} is neither special nor aggregated (strength matrix not symmetric?)", i);
+  out.max_size = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
+  return out;
+}
+
+NullSpace rigid_body_modes(const Eigen::VectorXd& positions, const ConstraintSet* constraints) {
+  const int n = static_cast<int>(positions.size() / 3);
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (int i = 0; i < n; ++i) centre += positions.segment<3>(3 * i);
+  if (n > 0) centre /= n;
+  NullSpace K(3 * n, 6);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = positions.segment<3>(3 * i) - centre;
+    auto Ki = K.middleRows<3>(3 * i);
+    Ki.leftCols<3>().setIdentity();
+    // Columns r_x, r_y, r_z (spec 04 §4.2): the velocity e_k x p.
+    Ki.rightCols<3>() << 0, p.z(), -p.y(),  //
+        -p.z(), 0, p.x(),                   //
+        p.y(), -p.x(), 0;
+    if (constraints && constraints->count(i) > 0) {
+      const Block3 S = constraints->filter(i);
+      const Eigen::Matrix<double, 3, 6> Kf = S * Ki;
+      Ki = Kf;
+    }
+  }
+  return K;
+}
+
+template <int B>
+Tentative tentative_prolongator(const Aggregates& aggs, const NullSpace& K, double tolerance) {
+  const int n = static_cast<int>(aggs.node_agg.size());
+  const int na = aggs.count;
+  WEFT_ASSERT(K.rows() == static_cast<Eigen::Index>(B) * n, "near null space has {} rows, expected {}", K.rows(), B * n);
+  // Members of each aggregate in node order (counting sort).
+  std::vector<int> ptr(na + 1, 0), nodes(n);
+  for (int i = 0; i < n; ++i)
+    if (aggs.node_agg[i] >= 0) ++ptr[aggs.node_agg[i] + 1];
+  for (int a = 0; a < na; ++a) ptr[a + 1] += ptr[a];
+  {
+    std::vector<int> fill(ptr.begin(), ptr.end() - 1);
+    for (int i = 0; i < n; ++i)
+      if (aggs.node_agg[i] >= 0) nodes[fill[aggs.node_agg[i]]++] = i;
+  }
+  Tentative t;
+  t.Q.assign(static_cast<std::size_t>(6 * B) * n, 0.0);
+  t.Kc.setZero(6 * na, 6);
+  t.dummy.assign(6 * na, 0);
+  int deficient = 0;
+#pragma omp parallel reduction(+ : deficient) if (na > parallel_rows / 8)
+  {
+    Eigen::Matrix<double, Eigen::Dynamic, 6> V;  // thread-local, grows only
+#pragma omp for schedule(dynamic, 64)
+    for (int a = 0; a < na; ++a) {
+      const int size = ptr[a + 1] - ptr[a], m = B * size;
+      if (V.rows() < m) V.resize(m, 6);
+      auto Va = V.topRows(m);
+      for (int s = 0; s < size; ++s) Va.middleRows(B * s, B) = K.middleRows(B * nodes[ptr[a] + s], B);
+      double top = 0;
+      for (int c = 0; c < 6; ++c) top = std::max(top, Va.col(c).norm());
+      Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
+      bool dropped = false;
+      // Classical Gram-Schmidt, twice (CGS2): orthogonal to round-off; columns in the span of
+      // the previous ones (relative tolerance) are dropped and stay zero (spec 04 §4.6).
+      for (int c = 0; c < 6; ++c) {
+        const double original = Va.col(c).norm();
+        for (int pass = 0; pass < 2; ++pass)
+          for (int p = 0; p < c; ++p) {
+            const double h = Va.col(p).dot(Va.col(c));
+            R(p, c) += h;
+            Va.col(c) -= h * Va.col(p);
+          }
+        const double nrm = Va.col(c).norm();
+        if (nrm <= tolerance * std::max(original, top) || nrm == 0.0) {
+          Va.col(c).setZero();
+          t.dummy[6 * a + c] = 1;
+          dropped = true;
+        } else {
+          Va.col(c) /= nrm;
+          R(c, c) = nrm;
+        }
+      }
+      deficient += dropped;
+      for (int s = 0; s < size; ++s)
+        Eigen::Map<BlockOf<B, 6>>(t.Q.data() + static_cast<std::ptrdiff_t>(6 * B) * nodes[ptr[a] + s]) =
+            Va.middleRows(B * s, B);
+      t.Kc.middleRows<6>(6 * a) = R;
+    }
+  }
+  t.deficient = deficient;
+  return t;
+}
+
+template <int B>
+LanczosResult lanczos(const BsrView<B, B>& A, const std::vector<double>& Dinv, int steps) {
+  const int n = A.rows, N = B * n;
+  LanczosResult out;
+  if (n == 0) return out;
+  auto apply_Dinv = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    y.resize(N);
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+    for (int i = 0; i < n; ++i)
+      y.segment<B>(B * i) = Eigen::Map<const BlockOf<B, B>>(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i) *
+                            x.segment<B>(B * i);
+  };
+  // Lanczos in the D inner product, keeping v = D q alongside q (no products with D).
+  Eigen::VectorXd v(N), q, v_prev = Eigen::VectorXd::Zero(N), q_prev = Eigen::VectorXd::Zero(N), w, u, s;
+  for (int k = 0; k < N; ++k) v[k] = hash_uniform(k);
+  apply_Dinv(v, q);
+  double nrm = std::sqrt(std::max(0.0, q.dot(v)));
+  if (!(nrm > 0)) return out;
+  q /= nrm;
+  v /= nrm;
+  std::vector<double> alpha, beta;
+  double beta_prev = 0;
+  for (int j = 0; j < steps; ++j) {
+    w.resize(N);
+    spmv(A, q.data(), w.data());
+    const double a = q.dot(w);
+    alpha.push_back(a);
+    u = w - a * v - beta_prev * v_prev;  // D w~
+    apply_Dinv(w, s);
+    s -= a * q + beta_prev * q_prev;     // w~ = D^-1 A q - a q - beta q_prev
+    const double b2 = s.dot(u);
+    const double b = std::sqrt(std::max(0.0, b2));
+    beta.push_back(b);
+    if (!(b > 1e-12 * std::abs(a))) break;
+    q_prev.swap(q);
+    v_prev.swap(v);
+    q = s / b;
+    v = u / b;
+    beta_prev = b;
+  }
+  const int m = static_cast<int>(alpha.size());
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(m, m);
+  for (int j = 0; j < m; ++j) {
+    T(j, j) = alpha[j];
+    if (j + 1 < m) T(j, j + 1) = T(j + 1, j) = beta[j];
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(T);
+  const int top = m - 1;  // eigenvalues ascending
+  out.ritz = es.eigenvalues()[top];
+  out.residual = std::abs(beta[m - 1] * es.eigenvectors()(m - 1, top));
+  out.steps = m;
+  return out;
+}
+
+template <int B>
+BlockMatrix<B, 6> prolongator_pattern(const BsrView<B, B>& A, const std::vector<std::uint8_t>* strong,
+                                      const Aggregates& aggs) {
+  const int n = A.rows;
+  const std::vector<int>& agg = aggs.node_agg;
+  std::vector<int> ptr(n + 1, 0);
+  auto row_columns = [&](int i, std::vector<int>& cols) {
+    cols.clear();
+    if (agg[i] < 0) return;
+    cols.push_back(agg[i]);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j == i || agg[j] < 0 || (strong && !(*strong)[k])) continue;
+      if (std::find(cols.begin(), cols.end(), agg[j]) == cols.end()) cols.push_back(agg[j]);
+    }
+    std::sort(cols.begin(), cols.end());
+  };
+#pragma omp parallel if (n > parallel_rows)
+  {
+    std::vector<int> cols;
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      row_columns(i, cols);
+      ptr[i + 1] = static_cast<int>(cols.size());
+    }
+  }
+  for (int i = 0; i < n; ++i) ptr[i + 1] += ptr[i];
+  std::vector<int> col(ptr[n]);
+#pragma omp parallel if (n > parallel_rows)
+  {
+    std::vector<int> cols;
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      row_columns(i, cols);
+      std::copy(cols.begin(), cols.end(), col.begin() + ptr[i]);
+    }
+  }
+  return BlockMatrix<B, 6>(n, aggs.count, std::move(ptr), std::move(col));
+}
+
+template <int B>
+void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv, const std::vector<std::uint8_t>* strong,
+                        const Aggregates& aggs, const Tentative& t, double omega, BlockMatrix<B, 6>& P) {
+  const int n = A.rows;
+  const std::vector<int>& agg = aggs.node_agg;
+  const int* pr = P.row_ptr().data();
+  const int* pc = P.col().data();
+  auto Q = [&](int j) { return Eigen::Map<const BlockOf<B, 6>>(t.Q.data() + static_cast<std::ptrdiff_t>(6 * B) * j); };
+  auto slot = [&](int i, int c) {
+    const int* it = std::lower_bound(pc + pr[i], pc + pr[i + 1], c);
+    WEFT_ASSERT(it != pc + pr[i + 1] && *it == c, "prolongator pattern lacks block ({}, {})", i, c);
+    return static_cast<int>(it - pc);
+  };
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    for (int k = pr[i]; k < pr[i + 1]; ++k) P.block(k).setZero();
+    if (agg[i] < 0) continue;
+    const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+    Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j == i) {
+        Aii += A.block(k);
+      } else if (strong && !(*strong)[k]) {
+        Aii += A.block(k);  // weak: lumped into the diagonal
+      } else if (agg[j] >= 0) {
+        P.block(slot(i, agg[j])).noalias() -= omega * (Di * A.block(k)) * Q(j);
+      }
+    }
+    const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
+    P.block(slot(i, agg[i])).noalias() += G * Q(i);
+  }
+}
+
+#define WEFT_SA_INSTANTIATE(B)                                                                                        \
+  template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
+  template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
+                                std::vector<std::uint8_t>&);                                                          \
+  template Aggregates aggregate<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&,                            \
+                                   const std::vector<std::uint8_t>&);                                                 \
+  template Tentative tentative_prolongator<B>(const Aggregates&, const NullSpace&, double);                          \
+  template LanczosResult lanczos<B>(const BsrView<B, B>&, const std::vector<double>&, int);                          \
+  template BlockMatrix<B, 6> prolongator_pattern<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>*,          \
+                                                    const Aggregates&);                                               \
+  template void prolongator_values<B>(const BsrView<B, B>&, const std::vector<double>&,                               \
+                                      const std::vector<std::uint8_t>*, const Aggregates&, const Tentative&, double,  \
+                                      BlockMatrix<B, 6>&);
+WEFT_SA_INSTANTIATE(3)
+WEFT_SA_INSTANTIATE(6)
+#undef WEFT_SA_INSTANTIATE
+
+}  // namespace sa
+
+// ---------------------------------------------------------------------------------------
+// The hierarchy
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+/// One level: its operator, smoother data, and the transfer to the next level.
+template <int B>
+struct Level {
+  BsrView<B, B> external;       // the caller's matrix (fine level, reuse != frozen)
+  BlockMatrix<B, B> own;        // Galerkin result (coarse) or private copy (fine, frozen)
+  bool uses_external = false;
+  BsrView<B, B> A() const { return uses_external ? external : own.view(); }
+  int n() const { return uses_external ? external.rows : own.rows(); }
+
+  std::vector<double> Dinv;     // n blocks B x B
+  double ritz = 0, lambda = 0;
+
+  // Coarsening structure (kept under reuse = aggregates).
+  std::vector<std::uint8_t> strong, special;
+  sa::Aggregates aggs;
+  int num_special = 0;
+  BlockMatrix<B, 6> P;
+  TransposeIndex PT;
+  std::vector<std::uint8_t> dummy;  // per coarse dof
+  int deficient = 0;
+  bool coarsest = false;
+
+  // Coarsest solve.
+  int direct = 0;  // 0: smoother only, 1: LLT, 2: LDLT
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt;
+
+  // Work vectors (apply is const; one apply at a time).
+  mutable Eigen::VectorXd f, x, res, d;
+
+  std::size_t memory_bytes() const {
+    auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() +
+                    PT.memory_bytes() + vb(dummy);
+    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
+    if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
+    if (direct == 2) m += sizeof(double) * (ldlt.matrixLDLT().size() + 2 * ldlt.rows());
+    return m;
+  }
+};
+
+}  // namespace
+
+struct SaAmg::Impl {
+  std::unique_ptr<Level<3>> fine = std::make_unique<Level<3>>();
+  std::vector<Level<6>> coarse;  // reserved to max_levels: references stay valid
+  bool built = false;
+  int fine_rows = -1, fine_nnz = -1;
+  double nnz_scalar_total = 0, rows_scalar_total = 0;
+};
+
+SaAmg::SaAmg(const Params& prm) : prm_(prm), impl_(std::make_unique<Impl>()) { validate(prm_).throw_if_failed(); }
+SaAmg::~SaAmg() = default;
+SaAmg::SaAmg(SaAmg&&) noexcept = default;
+SaAmg& SaAmg::operator=(SaAmg&&) noexcept = default;
+
+Checker SaAmg::validate(const Params& p) {
+  Checker c("SaAmg::Params");
+  c.require(p.theta > 0 && p.theta < 1, "theta", p.theta, "in (0, 1)")
+      .require(p.diagonal_dominance >= 0, "diagonal_dominance", p.diagonal_dominance, ">= 0")
+      .require(p.coarse_size >= 1, "coarse_size", p.coarse_size, ">= 1")
+      .require(p.max_levels >= 1 && p.max_levels <= 30, "max_levels", p.max_levels, "in [1, 30]")
+      .require(p.stall_ratio > 0 && p.stall_ratio <= 1, "stall_ratio", p.stall_ratio, "in (0, 1]")
+      .require(p.dense_limit >= 1, "dense_limit", p.dense_limit, ">= 1")
+      .require(p.qr_tolerance > 0 && p.qr_tolerance < 1, "qr_tolerance", p.qr_tolerance, "in (0, 1)")
+      .require(p.lanczos_steps >= 1 && p.lanczos_steps <= 100, "lanczos_steps", p.lanczos_steps, "in [1, 100]")
+      .require(p.chebyshev_degree >= 1 && p.chebyshev_degree <= 10, "chebyshev_degree", p.chebyshev_degree, "in [1, 10]")
+      .require(p.chebyshev_lower > 0 && p.chebyshev_lower < p.chebyshev_upper, "chebyshev_lower", p.chebyshev_lower,
+               "in (0, chebyshev_upper)");
+  return c;
+}
+
+Status SaAmg::analyze_pattern(const BlockCsr& A) {
+  impl_->built = false;
+  impl_->fine_rows = A.block_rows();
+  impl_->fine_nnz = A.num_blocks();
+  return Status::success;
+}
+
+namespace {
+
+struct BuildContext {
+  const SaAmg::Params& prm;
+  SaSetupTimes& times;
+  std::vector<SaLevelStats>& stats;
+  std::vector<Level<6>>& coarse;
+};
+
+template <int B>
+void make_coarsest(Level<B>& L, const SaAmg::Params& prm) {
+  L.coarsest = true;
+  L.direct = 0;
+  const int N = B * L.n();
+  if (N > prm.dense_limit || N == 0) return;
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(N, N);
+  const auto A = L.A();
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(k);
+  L.llt.compute(D);
+  if (L.llt.info() == Eigen::Success) {
+    L.direct = 1;
+    return;
+  }
+  L.llt = Eigen::LLT<Eigen::MatrixXd>();
+  L.ldlt.compute(D);
+  if (L.ldlt.info() == Eigen::Success) L.direct = 2;
+}
+
+double bound_of(const sa::LanczosResult& r, LambdaBound b) {
+  switch (b) {
+    case LambdaBound::ritz_factor: return 1.1 * r.ritz;
+    case LambdaBound::ritz: return r.ritz;
+    case LambdaBound::ritz_residual:
+    default: return r.ritz + r.residual;
+  }
+}
+
+/// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
+template <int B>
+Status build_level(BuildContext& ctx, Level<B>& L, int index, const NullSpace& K, bool reuse) {
+  const auto& prm = ctx.prm;
+  auto& T = ctx.times;
+  const auto A = L.A();
+  const int n = A.rows;
+  SaLevelStats st;
+  st.rows = n;
+  st.block_size = B;
+  st.nnz_blocks = A.nnz();
+  {
+    ScopedTimer t(T.other);
+    const int bad = invert_block_diagonal<B>(A, L.Dinv);
+    if (bad > 0 && index == 0) return Status::numerical_issue;
+  }
+  {
+    ScopedTimer t(T.lanczos);
+    const sa::LanczosResult lr = sa::lanczos<B>(A, L.Dinv, prm.lanczos_steps);
+    L.ritz = lr.ritz;
+    L.lambda = bound_of(lr, prm.lambda_bound);
+  }
+  st.ritz = L.ritz;
+  st.lambda = L.lambda;
+  if (!(L.lambda > 0) || !std::isfinite(L.lambda)) return Status::numerical_issue;
+
+  const bool last = index + 1 >= prm.max_levels || n <= prm.coarse_size;
+  if (!reuse) {
+    L.coarsest = false;
+    if (!last) {
+      std::vector<double> mu;
+      {
+        ScopedTimer t(T.strength);
+        sa::strength<B>(A, prm.theta, prm.strength, mu, L.strong);
+        L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
+      }
+      {
+        ScopedTimer t(T.aggregation);
+        L.aggs = sa::aggregate<B>(A, L.strong, L.special);
+      }
+    }
+    if (last || L.aggs.count == 0 || L.aggs.count > prm.stall_ratio * n) {
+      ScopedTimer t(T.other);
+      L.strong = {};
+      L.special = {};
+      L.aggs = {};
+      L.P.clear();
+      L.PT = {};
+      make_coarsest(L, prm);
+      ctx.stats.push_back(st);
+      return Status::success;
+    }
+  } else if (L.coarsest) {
+    ScopedTimer t(T.other);
+    make_coarsest(L, prm);
+    ctx.stats.push_back(st);
+    return Status::success;
+  }
+  st.special = L.num_special;
+  st.aggregates = L.aggs.count;
+  st.max_aggregate = L.aggs.max_size;
+
+  sa::Tentative tent;
+  {
+    ScopedTimer t(T.qr);
+    tent = sa::tentative_prolongator<B>(L.aggs, K, prm.qr_tolerance);
+  }
+  L.dummy = tent.dummy;
+  L.deficient = tent.deficient;
+  st.deficient = tent.deficient;
+  const std::vector<std::uint8_t>* strong = prm.filtered_smoothing ? &L.strong : nullptr;
+  {
+    ScopedTimer t(T.smoothing);
+    if (!reuse) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
+    sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, 4.0 / (3.0 * L.lambda), L.P);
+    if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
+    if (!reuse) L.PT.build(L.P.view());
+  }
+  st.nnz_p = L.P.nnz();
+  tent.Q = {};
+
+  const int nc = L.aggs.count;
+  if (!reuse) {
+    ctx.coarse.emplace_back();
+  }
+  Level<6>& C = ctx.coarse[index];
+  {
+    ScopedTimer t(T.galerkin);
+    if (!reuse) C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT);
+    Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);
+    // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
+    // diagonal so A_c stays SPD; they are decoupled from everything else.
+    double sum = 0;
+    long count = 0;
+    for (int I = 0; I < nc; ++I) {
+      const int kd = C.own.find(I, I);
+      for (int c = 0; c < 6; ++c)
+        if (!L.dummy[6 * I + c]) sum += C.own.block(kd)(c, c), ++count;
+    }
+    const double mean = count > 0 ? sum / count : 1.0;
+    for (int I = 0; I < nc; ++I) {
+      const int kd = C.own.find(I, I);
+      for (int c = 0; c < 6; ++c)
+        if (L.dummy[6 * I + c]) C.own.block(kd)(c, c) = mean;
+    }
+  }
+  L.coarsest = false;
+  ctx.stats.push_back(st);
+  // Work vectors of the coarse level.
+  C.f.resize(6 * nc);
+  C.x.resize(6 * nc);
+  C.res.resize(6 * nc);
+  C.d.resize(6 * nc);
+  return build_level<6>(ctx, C, index + 1, tent.Kc, reuse);
+}
+
+}  // namespace
+
+Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) {
+  Impl& I = *impl_;
+  stats_.message.clear();
+  if (!ctx.positions) {
+    stats_.message = "SaAmg needs the vertex positions for the rotation modes: set SolveContext::positions";
+    return Status::invalid_input;
+  }
+  const int n = A.block_rows();
+  if (ctx.positions->size() != 3 * n) {
+    stats_.message = fmt::format("SaAmg: positions have {} entries, the matrix {} rows", ctx.positions->size(), 3 * n);
+    return Status::invalid_input;
+  }
+  if (ctx.constraints && ctx.constraints->num_vertices() != n && !ctx.constraints->empty()) {
+    stats_.message = fmt::format("SaAmg: constraint set has {} vertices, the matrix {}", ctx.constraints->num_vertices(), n);
+    return Status::invalid_input;
+  }
+  const bool same_pattern = I.built && I.fine_rows == n && I.fine_nnz == A.num_blocks();
+  const bool reuse = same_pattern && prm_.reuse != SaReuse::none;
+  stats_.reused = reuse;
+  if (reuse && prm_.reuse == SaReuse::frozen) return Status::success;
+
+  SaSetupTimes times;
+  double total = 0;
+  Status status;
+  {
+    ScopedTimer t(total);
+    if (!reuse) {
+      I.coarse.clear();
+      I.coarse.reserve(prm_.max_levels);
+      I.fine = std::make_unique<Level<3>>();
+    }
+    Level<3>& F = *I.fine;
+    if (prm_.reuse == SaReuse::frozen) {
+      F.own = BlockMatrix<3, 3>(n, n, A.row_ptr(), A.col());
+      F.own.values() = A.values();
+      F.uses_external = false;
+    } else {
+      F.external = bsr_view(A);
+      F.uses_external = true;
+    }
+    F.res.resize(3 * n);
+    F.d.resize(3 * n);
+    NullSpace K;
+    {
+      ScopedTimer tk(times.other);
+      K = sa::rigid_body_modes(*ctx.positions, ctx.constraints && !ctx.constraints->empty() ? ctx.constraints : nullptr);
+    }
+    stats_.levels.clear();
+    BuildContext bc{prm_, times, stats_.levels, I.coarse};
+    status = build_level<3>(bc, F, 0, K, reuse);
+  }
+  times.total = total;
+  stats_.times = times;
+  I.fine_rows = n;
+  I.fine_nnz = A.num_blocks();
+  if (status != Status::success) {
+    I.built = false;
+    if (stats_.message.empty()) stats_.message = "SaAmg setup failed: a diagonal block is singular or lambda is not finite";
+    return status;
+  }
+  I.built = true;
+  const int L = levels();
+  stats_.coarse_direct = (L == 1 ? I.fine->direct : I.coarse[L - 2].direct) != 0;
+  return Status::success;
+}
+
+int SaAmg::levels() const {
+  if (!impl_->built) return 0;
+  return 1 + static_cast<int>(impl_->coarse.size());
+}
+
+// ---------------------------------------------------------------------------------------
+// The cycle
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+/// d = c1 d + c2 Dinv res; x += d (or x = d when `assign`). Parallel over block rows.
+template <int B>
+void chebyshev_update(int n, const double* Dinv, const double* res, double c1, double c2, double* d, double* x,
+                      bool assign) {
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    Eigen::Map<Vec<B>> di(d + B * i), xi(x + B * i);
+    const Eigen::Map<const BlockOf<B, B>> Di(Dinv + static_cast<std::ptrdiff_t>(B * B) * i);
+    const Eigen::Map<const Vec<B>> ri(res + B * i);
+    if (c1 == 0.0)
+      di.noalias() = c2 * (Di * ri);
+    else
+      di = c1 * di + c2 * (Di * ri);
+    if (assign)
+      xi = di;
+    else
+      xi += di;
+  }
+}
+
+/// Chebyshev iteration (spec 04 §5.2) on D^-1 A over [lower, upper] * lambda:
+/// x <- x + p-correction; with `zero_guess` x is overwritten (x = p-smoothing of 0).
+template <int B>
+void chebyshev(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x, bool zero_guess) {
+  const auto A = L.A();
+  const int n = A.rows;
+  const double a = prm.chebyshev_lower * L.lambda, b = prm.chebyshev_upper * L.lambda;
+  const double theta = 0.5 * (a + b), delta = 0.5 * (b - a), sigma = theta / delta;
+  double* res = L.res.data();
+  double* d = L.d.data();
+  const double* Dinv = L.Dinv.data();
+  double rho = 1.0 / sigma;
+  if (zero_guess) {
+    chebyshev_update<B>(n, Dinv, f, 0.0, 1.0 / theta, d, x, /*assign=*/true);
+  } else {
+    residual(A, f, x, res);
+    chebyshev_update<B>(n, Dinv, res, 0.0, 1.0 / theta, d, x, false);
+  }
+  for (int j = 2; j <= prm.chebyshev_degree; ++j) {
+    // res <- res - A d (the first time from f when the guess was zero).
+    residual(A, (j == 2 && zero_guess) ? f : res, d, res);
+    const double rho_new = 1.0 / (2.0 * sigma - rho);
+    chebyshev_update<B>(n, Dinv, res, rho_new * rho, 2.0 * rho_new / delta, d, x, false);
+    rho = rho_new;
+  }
+}
+
+template <int B>
+void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x) {
+  const int N = B * L.n();
+  if (L.direct == 0) {  // smoother only: B = A^-1 - G A^-1 G^T, still SPD (Appendix A)
+    chebyshev(L, prm, f, x, true);
+    chebyshev(L, prm, f, x, false);
+    return;
+  }
+  Eigen::Map<Eigen::VectorXd> xv(x, N);
+  xv = Eigen::Map<const Eigen::VectorXd>(f, N);
+  if (L.direct == 1)
+    L.llt.solveInPlace(xv);
+  else
+    xv = L.ldlt.solve(xv);
+}
+
+template <int B>
+void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, const SaAmg::Params& prm,
+           const double* f, double* x) {
+  if (L.coarsest) {
+    coarsest_solve(L, prm, f, x);
+    return;
+  }
+  const Level<6>& C = coarse[index];
+  const auto A = L.A();
+  chebyshev(L, prm, f, x, /*zero_guess=*/true);  // pre-smoothing (G*)
+  residual(A, f, x, L.res.data());
+  spmv_transpose(L.P.view(), L.PT, L.res.data(), C.f.data());
+  cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
+  multiply_add(L.P.view(), C.x.data(), x);
+  chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
+}
+
+}  // namespace
+
+void SaAmg::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  const Impl& I = *impl_;
+  WEFT_ASSERT(I.built, "SaAmg::apply before a successful setup");
+  WEFT_ASSERT(r.size() == 3 * I.fine->n(), "SaAmg::apply: r has {} entries, expected {}", r.size(), 3 * I.fine->n());
+  z.resize(r.size());
+  if (r.size() == 0) return;
+  cycle(*I.fine, I.coarse, 0, prm_, r.data(), z.data());
+}
+
+void SaAmg::smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const {
+  const Impl& I = *impl_;
+  WEFT_ASSERT(l >= 0 && l < levels(), "level {} out of range", l);
+  if (l == 0) {
+    WEFT_ASSERT(x.size() == f.size() && f.size() == 3 * I.fine->n(), "size mismatch");
+    chebyshev(*I.fine, prm_, f.data(), x.data(), false);
+  } else {
+    const Level<6>& C = I.coarse[l - 1];
+    WEFT_ASSERT(x.size() == f.size() && f.size() == 6 * C.n(), "size mismatch");
+    chebyshev(C, prm_, f.data(), x.data(), false);
+  }
+}
+
+Eigen::MatrixXd SaAmg::level_matrix(int l) const {
+  WEFT_ASSERT(l >= 0 && l < levels(), "level {} out of range", l);
+  auto dense = [](const auto& A, auto bs) {
+    constexpr int B = decltype(bs)::value;
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(B * A.rows, B * A.cols);
+    for (int i = 0; i < A.rows; ++i)
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(k);
+    return D;
+  };
+  if (l == 0) return dense(impl_->fine->A(), std::integral_constant<int, 3>());
+  return dense(impl_->coarse[l - 1].A(), std::integral_constant<int, 6>());
+}
+
+Eigen::MatrixXd SaAmg::prolongator(int l) const {
+  WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
+  if (l == 0) return impl_->fine->P.to_dense();
+  return impl_->coarse[l - 1].P.to_dense();
+}
+
+
+PreconditionerInfo SaAmg::info() const {
+  PreconditionerInfo out;
+  if (!impl_->built) return out;
+  out.memory_bytes = impl_->fine->memory_bytes();
+  for (const auto& C : impl_->coarse) out.memory_bytes += C.memory_bytes();
+  out.levels = levels();
+  double nnz0 = 0, rows0 = 0, nnz = 0, rows = 0;
+  for (const auto& s : stats_.levels) {
+    const double b = s.block_size;
+    if (nnz0 == 0) nnz0 = b * b * s.nnz_blocks, rows0 = b * s.rows;
+    nnz += b * b * s.nnz_blocks;
+    rows += b * s.rows;
+  }
+  out.operator_complexity = nnz0 > 0 ? nnz / nnz0 : 0;
+  out.grid_complexity = rows0 > 0 ? rows / rows0 : 0;
+  return out;
+}
+
+}  // namespace weft::linear

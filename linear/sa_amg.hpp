@@ -1,0 +1,251 @@
+#pragma once
+/// \file sa_amg.hpp
+/// `SaAmg`: smoothed aggregation multigrid for cloth (spec 04 §4-6; Tamstorf, Jones &
+/// McCormick 2015), used as a fixed SPD preconditioner (one V(1,1) cycle, zero initial
+/// guess) of PCG on the prefiltered system Ahat = S A S + Sigma (I - S).
+///
+/// Setup per level (spec 04 §4.10), fine level with 3x3 blocks, coarse levels 6x6:
+///   Dinv   <- block-diagonal inverse of A_l
+///   lambda <- 10 steps of generalised Lanczos on A q = lambda D q, inflated (§4.7)
+///   Csoc   <- mu_ij = rho(A_ii^-1/2 A_ij A_jj^-1/2) > theta max_k mu_ik, symmetrised (§4.3)
+///   special<- no strong neighbour, or sum_j mu_ij < tau_dd (§4.4); their rows of P are empty
+///   aggs   <- two-pass greedy aggregation, serial and deterministic (§4.5)
+///   Phat,Kc<- local thin QR of the near null space K (6 rigid-body modes K <- S K on the
+///             fine level), rank revealing: dropped columns stay as zero "dummy" coarse dofs (§4.6)
+///   P      <- (I - omega D^-1 A_f) Phat, omega = 4 / (3 lambda), A_f = A with weak blocks
+///             lumped into the diagonal (§4.8)
+///   A_c    <- P^T A P (fused row-wise product, cached symbolic pattern); dummy dofs get the
+///             mean diagonal of A_c (§4.9)
+/// until n_l <= coarse_size nodes, coarsening stalls (n_{l+1} > stall_ratio n_l) or
+/// max_levels; the coarsest level is solved by dense Cholesky (LDL^T fallback).
+///
+/// Smoother (§5.2): degree-k Chebyshev on D^-1 A over [lower, upper] * lambda, the same
+/// polynomial before and after the coarse correction, so that B is symmetric (Appendix A);
+/// it is positive definite while lambda_max(D^-1 A) < (lower + upper) * lambda.
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "framework/block_csr.hpp"
+#include "framework/concepts.hpp"
+#include "framework/constraints.hpp"
+#include "framework/params.hpp"
+#include "framework/status.hpp"
+#include "linear/bsr.hpp"
+#include "linear/preconditioner.hpp"
+
+namespace weft::linear {
+
+/// How mu_ij measures the scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 (spec 04 §4.3).
+enum class SocMeasure {
+  spectral,   ///< rho(M), the thesis's measure (3x3: exact, closed-form cubic; 6x6: ||M^64||_F^(1/64), within ~2%)
+  two_norm,   ///< ||M||_2 >= rho(M)
+  frobenius,  ///< ||M||_F, cheapest
+};
+inline constexpr std::array<std::string_view, 3> soc_measure_names = {"spectral", "two_norm", "frobenius"};
+
+/// What a `setup` with an unchanged pattern may keep from the previous one (spec 04 §13).
+enum class SaReuse {
+  none,        ///< rebuild everything (the thesis)
+  aggregates,  ///< keep strength, special nodes, aggregates and every pattern (P, P^T index,
+               ///< A_c); recompute Dinv, lambda, K (positions and S), QR, P and A_c values and
+               ///< the coarse factorisation
+  frozen,      ///< keep the whole hierarchy (a private copy of the fine matrix included) until
+               ///< `analyze_pattern`: B stays a fixed SPD map, only its quality drops
+};
+inline constexpr std::array<std::string_view, 3> sa_reuse_names = {"none", "aggregates", "frozen"};
+
+/// Which upper estimate of lambda_max(D^-1 A) the smoother and omega use (spec 04 §4.7).
+enum class LambdaBound {
+  ritz_residual,  ///< largest Ritz value + its residual bound |beta_m s_m|
+  ritz_factor,    ///< 1.1 * largest Ritz value
+  ritz,           ///< the Ritz value itself: an underestimate (only for negative controls)
+};
+inline constexpr std::array<std::string_view, 3> lambda_bound_names = {"ritz_residual", "ritz_factor", "ritz"};
+
+/// Near-null-space vectors: #dofs by 6, row-major (node i's block is rows B i .. B i + B - 1).
+using NullSpace = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>;
+
+/// One level of the hierarchy, as reported by `SaAmg::stats()`.
+struct SaLevelStats {
+  int rows = 0;                ///< block rows (nodes)
+  int block_size = 0;          ///< 3 (fine) or 6
+  long long nnz_blocks = 0;    ///< stored blocks of A_l
+  int special = 0;             ///< special nodes (no interpolation)
+  int aggregates = 0;          ///< = rows of the next level (0 on the coarsest)
+  int deficient = 0;           ///< aggregates whose local QR dropped a column
+  int max_aggregate = 0;       ///< largest aggregate (nodes)
+  long long nnz_p = 0;         ///< stored blocks of P_l
+  double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
+  double lambda = 0;           ///< the inflated bound used
+};
+
+/// Setup wall time split [s] (summed over levels).
+struct SaSetupTimes {
+  double strength = 0, aggregation = 0, qr = 0, smoothing = 0, galerkin = 0, lanczos = 0;
+  double other = 0;  ///< near null space, block inverses, coarse factorisation, bookkeeping
+  double total = 0;
+};
+
+struct SaStats {
+  std::vector<SaLevelStats> levels;
+  SaSetupTimes times;
+  bool reused = false;        ///< the last setup reused structure (reuse != none)
+  bool coarse_direct = true;  ///< the coarsest level is solved exactly (else: smoother only)
+  std::string message;        ///< why the last setup failed ("" on success)
+};
+
+/// Building blocks of the setup, exposed for tests (instantiated for B = 3 and 6).
+namespace sa {
+
+/// mu_ij of every stored block (0 on the diagonal) and the symmetrised strong flags:
+/// strong[k] = 1 iff mu_ij > theta max_k mu_ik or mu_ji > theta max_k mu_jk (i != j).
+template <int B>
+void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
+              std::vector<std::uint8_t>& strong);
+/// mu of one scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 under `measure` (B = 3 or 6).
+template <int B>
+double measure(const Eigen::Matrix<double, B, B>& M, SocMeasure measure);
+/// Spectral radius of a general 3x3 matrix (roots of the characteristic cubic).
+double spectral_radius3(const Eigen::Matrix3d& M);
+
+/// Marks special nodes (no strong neighbour, or sum_j mu_ij < tau_dd) and clears every strong
+/// flag that touches one (repeated until no new node loses its last strong neighbour).
+/// Returns the number of special nodes.
+template <int B>
+int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double tau_dd, std::vector<std::uint8_t>& strong,
+                  std::vector<std::uint8_t>& special);
+
+/// Node -> aggregate map (-1 for special nodes) of the two-pass aggregation (spec 04 §4.5).
+struct Aggregates {
+  std::vector<int> node_agg;
+  int count = 0;
+  int max_size = 0;
+};
+template <int B>
+Aggregates aggregate(const BsrView<B, B>& A, const std::vector<std::uint8_t>& strong,
+                     const std::vector<std::uint8_t>& special);
+
+/// The six rigid-body modes at `positions` (3 per vertex, centred on their mean), filtered
+/// K <- S K when `constraints` is given (spec 04 §4.2).
+NullSpace rigid_body_modes(const Eigen::VectorXd& positions, const ConstraintSet* constraints);
+
+/// Tentative prolongator: Phat = blockdiag(Q_a) stored as one B x 6 block per node (zero for
+/// special nodes), Kc = [R_1; ...; R_n2] (spec 04 §4.6).
+struct Tentative {
+  std::vector<double> Q;              ///< #nodes blocks of B x 6 (row-major)
+  NullSpace Kc;                       ///< 6 #aggregates by 6
+  std::vector<std::uint8_t> dummy;    ///< per coarse dof: its column was dropped
+  int deficient = 0;                  ///< aggregates with a dropped column
+};
+template <int B>
+Tentative tentative_prolongator(const Aggregates& aggs, const NullSpace& K, double tolerance);
+
+/// Largest Ritz value of A q = lambda D q after `steps` generalised Lanczos steps from a
+/// fixed pseudo-random start, and its residual bound |beta_m s_m|.
+struct LanczosResult {
+  double ritz = 0;
+  double residual = 0;
+  int steps = 0;
+};
+template <int B>
+LanczosResult lanczos(const BsrView<B, B>& A, const std::vector<double>& Dinv, int steps);
+
+/// Pattern of P = (I - omega D^-1 A_f) Phat: row i (non-special) holds the aggregates of i
+/// and of its neighbours (strong neighbours only when `strong` is given); special rows are empty.
+template <int B>
+BlockMatrix<B, 6> prolongator_pattern(const BsrView<B, B>& A, const std::vector<std::uint8_t>* strong,
+                                      const Aggregates& aggs);
+/// Values of P for a pattern from `prolongator_pattern` with the same `strong`. With
+/// `strong`, A_f keeps the strong blocks and lumps the weak ones into the diagonal block.
+template <int B>
+void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv, const std::vector<std::uint8_t>* strong,
+                        const Aggregates& aggs, const Tentative& t, double omega, BlockMatrix<B, 6>& P);
+
+}  // namespace sa
+
+/// Smoothed aggregation multigrid V(1,1) preconditioner (spec 04 §4-6). `apply` is const
+/// but uses per-level work vectors: one `apply` at a time per object.
+class SaAmg {
+ public:
+  static constexpr std::string_view name = "sa";
+  struct Params {
+    double theta = 0.48;               ///< strength threshold, relative to the row maximum
+    SocMeasure strength = SocMeasure::spectral;
+    double diagonal_dominance = 1e-2;  ///< tau_dd: special if sum_j mu_ij < tau_dd
+    bool filtered_smoothing = true;    ///< smooth P with A_f (weak blocks lumped into the diagonal)
+    int coarse_size = 200;             ///< stop coarsening at <= this many nodes
+    int max_levels = 10;
+    double stall_ratio = 0.8;          ///< stop when n_{l+1} > stall_ratio n_l
+    int dense_limit = 4000;            ///< largest coarsest level (dofs) solved densely; above: smoother only
+    double qr_tolerance = 1e-10;       ///< relative drop tolerance of the rank-revealing local QR
+    int lanczos_steps = 10;
+    LambdaBound lambda_bound = LambdaBound::ritz_residual;
+    int chebyshev_degree = 2;
+    double chebyshev_lower = 0.1;      ///< a / lambda
+    double chebyshev_upper = 1.1;      ///< b / lambda
+    SaReuse reuse = SaReuse::none;
+
+    template <class V>
+    void visit(V& v) {
+      v.field("theta", theta, {Unit::none, Range::open(0, 1), "strength threshold relative to the row's largest mu_ij"});
+      v.choice("strength", strength, soc_measure_names, "measure of the scaled block A_ii^-1/2 A_ij A_jj^-1/2");
+      v.field("diagonal_dominance", diagonal_dominance,
+              {Unit::none, Range::ge(0), "a node with sum_j mu_ij below this is special (relaxation only)"});
+      v.field("filtered_smoothing", filtered_smoothing,
+              {Unit::none, Range::any(), "smooth the prolongator with the filtered matrix (weak blocks lumped into the diagonal)"});
+      v.field("coarse_size", coarse_size, {Unit::none, Range::ge(1), "stop coarsening at this many nodes or fewer"});
+      v.field("max_levels", max_levels, {Unit::none, Range::closed(1, 30), "most levels of the hierarchy"});
+      v.field("stall_ratio", stall_ratio, {Unit::none, Range::open_closed(0, 1), "stop when a level keeps more than this fraction of the nodes"});
+      v.field("dense_limit", dense_limit, {Unit::none, Range::ge(1), "largest coarsest level (dofs) factorised densely; above, smoothing only"});
+      v.field("qr_tolerance", qr_tolerance, {Unit::none, Range::open(0, 1), "relative drop tolerance of the local rank-revealing QR"});
+      v.field("lanczos_steps", lanczos_steps, {Unit::none, Range::closed(1, 100), "generalised Lanczos steps for lambda_max(D^-1 A)"});
+      v.choice("lambda_bound", lambda_bound, lambda_bound_names, "upper estimate of lambda_max(D^-1 A) from the Lanczos result");
+      v.field("chebyshev_degree", chebyshev_degree, {Unit::none, Range::closed(1, 10), "degree of the Chebyshev smoother (pre and post)"});
+      v.field("chebyshev_lower", chebyshev_lower, {Unit::none, Range::open(0, 1), "lower end of the damped interval, relative to lambda"});
+      v.field("chebyshev_upper", chebyshev_upper, {Unit::none, Range::gt(0), "upper end of the damped interval, relative to lambda"});
+      v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
+    }
+  };
+  static Checker validate(const Params& p);
+
+  explicit SaAmg(const Params& prm);
+  ~SaAmg();
+  SaAmg(SaAmg&&) noexcept;
+  SaAmg& operator=(SaAmg&&) noexcept;
+  /// Forget every cached structure (the next `setup` rebuilds everything).
+  Status analyze_pattern(const BlockCsr& A);
+  /// Build (or refresh, see `SaReuse`) the hierarchy from the prefiltered matrix A.
+  /// ctx.positions is required (rotation modes); ctx.constraints, if given, filters K.
+  /// Except under `frozen`, A must stay alive and unchanged while `apply` is used.
+  Status setup(const BlockCsr& A, const SolveContext& ctx);
+  /// z = B r: one V(1,1) cycle from a zero guess.
+  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  PreconditionerInfo info() const;
+  const SaStats& stats() const { return stats_; }
+
+  // Inspection (tests and benchmarks).
+  int levels() const;
+  /// A_l as a dense matrix (small problems only).
+  Eigen::MatrixXd level_matrix(int l) const;
+  /// P_l (l < levels() - 1) as a dense matrix.
+  Eigen::MatrixXd prolongator(int l) const;
+  /// One Chebyshev sweep of level l: x <- x + p-smoothing of A_l x = f.
+  void smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const;
+
+ private:
+  struct Impl;  // the levels (sa_amg.cpp)
+  Params prm_;
+  SaStats stats_;
+  std::unique_ptr<Impl> impl_;
+};
+
+static_assert(Preconditioner<SaAmg>);
+
+}  // namespace weft::linear

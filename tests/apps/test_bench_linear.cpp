@@ -1,0 +1,120 @@
+// `weft bench linear --quick`: every example, tessellation and available solver runs at
+// m = 30, the files are written, constraints hold to round-off, and the contact examples
+// really have box contacts and repulsion springs.
+#include <doctest/doctest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "cli_support.hpp"
+
+using namespace weft::test;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::vector<std::string> split_lines(const std::string& s) {
+  std::vector<std::string> lines;
+  std::stringstream ss(s);
+  std::string line;
+  while (std::getline(ss, line))
+    if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
+}  // namespace
+
+TEST_SUITE("apps") {
+  TEST_CASE("bench: weft bench linear --quick runs all five examples with every solver") {
+    const Result list = run_weft("bench linear --list-solvers");
+    REQUIRE(list.code == 0);
+    std::set<std::string> solvers;
+    for (const auto& line : split_lines(list.output)) solvers.insert(line.substr(0, line.find(' ')));
+    CAPTURE(list.output);
+    REQUIRE(solvers.count("direct") == 1);
+    REQUIRE(solvers.count("diag_pcg") == 1);
+    // The default selection drops Eigen's LDL^T when CHOLMOD is there.
+    const size_t expected_solvers = solvers.size() - (solvers.count("cholmod") ? 1 : 0);
+
+    const auto dir = temp_dir("bench_linear_" + std::to_string(getpid()));
+    const Result r = run_weft(fmt::format("bench linear --quick --threads 1 --out {}", dir.string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    for (const char* s : {"Table 11.1", "regular tessellation", "irregular tessellation", "simple analytic box contact",
+                          "Memory bandwidth", "STREAM-like triad", "Hardware:", "Direct solver:", "PARDISO", "dropVertical"})
+      CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
+
+    // CSV: a header and one row per (example, tessellation, size, solver).
+    const auto rows = split_lines(slurp(dir / "bench_linear.csv"));
+    REQUIRE(rows.size() >= 1);
+    CHECK(rows.front().rfind("example,tessellation,m,vertices,solver,", 0) == 0);
+    CHECK(rows.size() - 1 == 5 * 2 * expected_solvers);
+    std::set<std::string> keys;
+    for (size_t i = 1; i < rows.size(); ++i) {
+      std::stringstream ss(rows[i]);
+      std::string ex, tess, m, nv, solver;
+      std::getline(ss, ex, ','), std::getline(ss, tess, ','), std::getline(ss, m, ','), std::getline(ss, nv, ','), std::getline(ss, solver, ',');
+      CHECK(m == "30");
+      keys.insert(ex + "/" + tess + "/" + m + "/" + solver);
+    }
+    CHECK(keys.size() == rows.size() - 1);  // no duplicate rows
+
+    // JSON lines: a meta record, then one record per case and solver.
+    const auto lines = read_jsonl(dir / "bench_linear.jsonl");
+    REQUIRE(lines.size() == rows.size());
+    CHECK(lines.front().at("record") == "meta");
+    CHECK(lines.front().at("stream_triad_gbs").get<double>() > 0);
+    std::map<std::string, int> contacts, springs, pattern_changes;
+    for (size_t i = 1; i < lines.size(); ++i) {
+      const json& j = lines[i];
+      CAPTURE(j.dump());
+      REQUIRE(j.at("record") == "solver");
+      const json& c = j.at("case");
+      const std::string ex = c.at("example");
+      CHECK(c.at("failure") == "");
+      CHECK(c.at("steps").get<int>() == 2);
+      CHECK(j.at("solves").get<int>() == 2);
+      CHECK(j.at("failures").get<int>() == 0);
+      CHECK(j.at("mean_total_s").get<double>() > 0);
+      CHECK(c.at("spmv_gbs").get<double>() > 0);
+      // Constraints (pins, box contacts) hold to round-off for every solver.
+      CHECK(j.at("max_constraint_violation").get<double>() <= 1e-12);
+      // Against the direct reference, the 1e-5 residual criterion gives a small energy error.
+      if (j.at("solver") != c.at("reference")) {
+        const double e = j.at("mean_energy_error").get<double>();
+        CHECK(e >= 0);
+        CHECK(e < 0.05);
+        CHECK(j.at("mean_iterations").get<double>() >= 1);
+      }
+      const std::string key = ex + "/" + c.at("tessellation").get<std::string>();
+      contacts[key] = c.at("box_contacts_max").get<int>();
+      springs[key] = c.at("springs_max").get<int>();
+      pattern_changes[key] = c.at("pattern_changes").get<int>();
+      CHECK(c.at("vertices").get<int>() == (ex == "re-entrant" ? 31 * 31 - 15 * 15 : 961));
+    }
+    for (const char* t : {"regular", "irregular"}) {
+      CAPTURE(t);
+      CHECK(contacts["dropHorizontal/" + std::string(t)] > 0);
+      CHECK(contacts["dropVertical/" + std::string(t)] > 0);
+      CHECK(springs["dropVertical/" + std::string(t)] > 0);
+      CHECK(pattern_changes["dropVertical/" + std::string(t)] >= 1);
+      CHECK(contacts["pinned/" + std::string(t)] == 0);
+      CHECK(springs["dropHorizontal/" + std::string(t)] == 0);
+    }
+    CHECK(slurp(dir / "bench_linear.md").find("Table 11.1") != std::string::npos);
+    fs::remove_all(dir);
+  }
+
+  TEST_CASE("bench: weft bench linear rejects unknown examples and solvers") {
+    const Result r = run_weft("bench linear --quick --examples flapping --solvers nosuch --out /nonexistent/never");
+    CAPTURE(r.output);
+    CHECK(r.code == 2);
+    CHECK(r.output.find("unknown example 'flapping'") != std::string::npos);
+    CHECK(r.output.find("'nosuch' is not available") != std::string::npos);
+  }
+}

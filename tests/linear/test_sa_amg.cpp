@@ -1,0 +1,671 @@
+// Smoothed aggregation multigrid (spec 04 §4-6, checklist V5-V14).
+#include <doctest/doctest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <queue>
+#include <set>
+
+#ifdef WEFT_WITH_OPENMP
+#include <omp.h>
+#endif
+
+#include "linear/prefilter.hpp"
+#include "linear/sa_amg.hpp"
+#include "tests/support/linear_fixtures.hpp"
+
+using namespace weft;
+using namespace weft::linear;
+using support::Pins;
+
+namespace {
+
+/// A prefiltered system as PPCG sees it: Ahat, chat and the data SA needs.
+struct Prefiltered {
+  support::ClothSystem sys;
+  BlockCsr Ahat;
+  Eigen::VectorXd chat;
+};
+
+Prefiltered prefiltered_cloth(int m, Tessellation t = Tessellation::regular, Pins pins = Pins::boundary) {
+  Prefiltered p{support::cloth_system(m, t, pins), {}, {}};
+  p.Ahat = p.sys.A;
+  prefilter_matrix(p.sys.A, p.sys.pins, p.Ahat);
+  prefilter_rhs(p.sys.A, p.sys.pins, p.sys.b, p.chat);
+  return p;
+}
+
+/// Grid positions of an m x m block Laplacian (unit spacing / m, z = 0).
+Eigen::VectorXd grid_positions(int m) {
+  Eigen::VectorXd x(3 * m * m);
+  for (int j = 0; j < m; ++j)
+    for (int i = 0; i < m; ++i) x.segment<3>(3 * (j * m + i)) = Eigen::Vector3d(double(i) / m, double(j) / m, 0.0);
+  return x;
+}
+
+struct PcgResult {
+  int iterations = 0;
+  bool converged = false;
+  double relative = 0;
+};
+
+/// Plain PCG with the spec's stopping test ||r||_{M^-1} / ||r_0||_{M^-1} < tol (spec 04 §8).
+template <class Prec>
+PcgResult pcg(const BlockCsr& A, const Eigen::VectorXd& b, const Prec& M, double tol = 1e-5, int max_it = 500) {
+  PcgResult out;
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(b.size()), r = b, z, p, q;
+  M.apply(r, z);
+  double rz = r.dot(z);
+  const double rz0 = rz;
+  p = z;
+  for (int it = 1; it <= max_it; ++it) {
+    A.multiply(p, q);
+    const double pq = p.dot(q);
+    if (!(pq > 0) || !(rz > 0)) break;
+    const double alpha = rz / pq;
+    x += alpha * p;
+    r -= alpha * q;
+    M.apply(r, z);
+    const double rz_new = r.dot(z);
+    out.iterations = it;
+    out.relative = std::sqrt(std::abs(rz_new / rz0));
+    if (out.relative < tol) {
+      out.converged = true;
+      break;
+    }
+    p = z + (rz_new / rz) * p;
+    rz = rz_new;
+  }
+  return out;
+}
+
+SaAmg::Params small_coarse(int coarse_size) {
+  SaAmg::Params prm;
+  prm.coarse_size = coarse_size;
+  return prm;
+}
+
+Eigen::MatrixXd assemble_preconditioner(const SaAmg& sa, int N) {
+  Eigen::MatrixXd B(N, N);
+  Eigen::VectorXd e = Eigen::VectorXd::Zero(N), z;
+  for (int j = 0; j < N; ++j) {
+    e[j] = 1;
+    sa.apply(e, z);
+    B.col(j) = z;
+    e[j] = 0;
+  }
+  return B;
+}
+
+/// Dense D^-1 A similarity: eigenvalues of L^-1 A L^-T with D = blockdiag(A_ii) = L L^T.
+Eigen::VectorXd jacobi_spectrum(const Eigen::MatrixXd& A, int b) {
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(A.rows(), A.cols());
+  for (int i = 0; i < A.rows(); i += b) D.block(i, i, b, b) = A.block(i, i, b, b);
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(A, D, Eigen::EigenvaluesOnly);
+  return es.eigenvalues();
+}
+
+}  // namespace
+
+TEST_SUITE("linear") {
+
+TEST_CASE("sa: spectral radius of 3x3 blocks matches the general eigenvalue solver") {
+  support::Rng rng(11);
+  int complex_cases = 0;
+  for (int t = 0; t < 2000; ++t) {
+    Eigen::Matrix3d M;
+    for (int a = 0; a < 3; ++a) M.row(a) = rng.vec3().transpose();
+    if (t % 5 == 0) M = M + M.transpose().eval();              // real spectrum
+    if (t % 7 == 0) M = rng.rotation() * (0.1 + rng.uniform());  // complex pair on a circle
+    Eigen::EigenSolver<Eigen::Matrix3d> es(M, false);
+    const double ref = es.eigenvalues().cwiseAbs().maxCoeff();
+    complex_cases += es.eigenvalues().imag().cwiseAbs().maxCoeff() > 1e-3;
+    CAPTURE(M);
+    CHECK(std::abs(sa::spectral_radius3(M) - ref) <= 1e-7 * std::max(1.0, ref));
+  }
+  CHECK(complex_cases > 100);
+  CHECK(sa::spectral_radius3(Eigen::Matrix3d::Zero()) == 0.0);
+  CHECK(std::abs(sa::spectral_radius3(2.5 * Eigen::Matrix3d::Identity()) - 2.5) <= 1e-12);
+}
+
+TEST_CASE("sa: the 6x6 spectral radius estimate is a tight upper bound") {
+  support::Rng rng(5);
+  double worst = 0;
+  for (int t = 0; t < 500; ++t) {
+    Eigen::Matrix<double, 6, 6> M;
+    for (int a = 0; a < 6; ++a)
+      for (int b = 0; b < 6; ++b) M(a, b) = rng.uniform(-1, 1);
+    if (t % 3 == 0) M = (M + M.transpose()).eval();
+    Eigen::EigenSolver<Eigen::Matrix<double, 6, 6>> es(M, false);
+    const double ref = es.eigenvalues().cwiseAbs().maxCoeff();
+    const double est = sa::measure<6>(M, SocMeasure::spectral);
+    CHECK(est >= ref * (1 - 1e-12));
+    worst = std::max(worst, est / ref - 1);
+  }
+  MESSAGE("worst relative overestimate " << worst);
+  CHECK(worst < 0.05);
+  CHECK(sa::measure<6>(Eigen::Matrix<double, 6, 6>::Zero(), SocMeasure::spectral) == 0.0);
+}
+
+TEST_CASE("sa: strength of connection is symmetric and follows the theta limits") {
+  Prefiltered p = prefiltered_cloth(15, Tessellation::irregular, Pins::two_sides);
+  const auto A = bsr_view(p.Ahat);
+  std::vector<double> mu;
+  std::vector<std::uint8_t> strong, special;
+  for (SocMeasure measure : {SocMeasure::spectral, SocMeasure::two_norm, SocMeasure::frobenius}) {
+    CAPTURE(static_cast<int>(measure));
+    sa::strength<3>(A, 0.48, measure, mu, strong);
+    int nstrong = 0, nweak = 0;
+    for (int i = 0; i < A.rows; ++i)
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+        const int j = A.col[k], kt = p.Ahat.find(j, i);
+        CHECK(strong[k] == strong[kt]);
+        CHECK(std::abs(mu[k] - mu[kt]) <= 1e-14 * std::max(1.0, mu[k]));
+        if (j != i) (strong[k] ? nstrong : nweak)++;
+        if (j == i) CHECK(strong[k] == 0);
+      }
+    CHECK(nstrong > 0);
+    CHECK(nweak > 0);  // a real threshold: some connections are weak
+  }
+  // theta -> 0: every neighbour with a nonzero coupling is strong.
+  sa::strength<3>(A, 1e-9, SocMeasure::spectral, mu, strong);
+  for (int k = 0; k < A.nnz(); ++k)
+    if (mu[k] > 0) CHECK(strong[k] == 1);
+  // theta -> 1: only the per-row maxima (in one of the two rows) stay strong.
+  sa::strength<3>(A, 1 - 1e-12, SocMeasure::spectral, mu, strong);
+  std::vector<double> top(A.rows, 0);
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) top[i] = std::max(top[i], mu[k]);
+  int nstrong = 0;
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      if (strong[k]) {
+        ++nstrong;
+        const int j = A.col[k];
+        CHECK((mu[k] >= top[i] * (1 - 1e-12) || mu[k] >= top[j] * (1 - 1e-12)));
+      }
+  CHECK(nstrong >= A.rows - p.sys.pins.constrained_vertices());
+  CHECK(nstrong <= 4 * A.rows);
+  // Fully constrained vertices have no strong neighbour and are special (V5).
+  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+  const int nspecial = sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+  CHECK(nspecial >= p.sys.pins.constrained_vertices());
+  for (int i = 0; i < A.rows; ++i)
+    if (p.sys.pins.count(i) == 3) CHECK(special[i] == 1);
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      if (strong[k]) CHECK((!special[i] && !special[A.col[k]]));
+}
+
+TEST_CASE("sa: a strongly diagonally dominant row is special") {
+  BlockCsr A = support::block_laplacian(6, 0.0);
+  A.block(A.diagonal(7)) += 1e6 * Block3::Identity();  // node 7: dominant
+  std::vector<double> mu;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(bsr_view(A), 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(bsr_view(A), mu, 1e-2, strong, special);
+  CHECK(special[7] == 1);
+  CHECK(special[8] == 0);
+  sa::strength<3>(bsr_view(A), 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(bsr_view(A), mu, 0.0, strong, special);  // tau_dd = 0: only isolated nodes
+  CHECK(special[7] == 0);
+}
+
+TEST_CASE("sa: aggregates are disjoint and connected and cover the non-special nodes") {
+  for (Tessellation t : {Tessellation::regular, Tessellation::irregular}) {
+    Prefiltered p = prefiltered_cloth(21, t, Pins::boundary);
+    const auto A = bsr_view(p.Ahat);
+    std::vector<double> mu;
+    std::vector<std::uint8_t> strong, special;
+    sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+    sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+    const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
+    REQUIRE(ag.count > 1);
+    CHECK(ag.count < A.rows / 3);  // real coarsening
+    std::vector<std::vector<int>> members(ag.count);
+    for (int i = 0; i < A.rows; ++i) {
+      CHECK((ag.node_agg[i] >= 0) == (special[i] == 0));  // union = non-special nodes
+      if (ag.node_agg[i] >= 0) members[ag.node_agg[i]].push_back(i);  // one aggregate per node: disjoint
+    }
+    std::vector<int> histogram(ag.max_size + 1, 0);
+    for (int a = 0; a < ag.count; ++a) {
+      REQUIRE(!members[a].empty());
+      ++histogram[members[a].size()];
+      // Connected in the strong graph: BFS from the first member reaches them all.
+      std::set<int> seen{members[a][0]};
+      std::queue<int> q;
+      q.push(members[a][0]);
+      while (!q.empty()) {
+        const int i = q.front();
+        q.pop();
+        for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+          if (strong[k] && ag.node_agg[A.col[k]] == a && seen.insert(A.col[k]).second) q.push(A.col[k]);
+      }
+      CHECK(seen.size() == members[a].size());
+    }
+    CHECK(histogram[1] == 0);  // no singletons
+    MESSAGE("aggregate sizes (tessellation " << static_cast<int>(t) << "): count " << ag.count << " max " << ag.max_size);
+    // Deterministic.
+    const sa::Aggregates again = sa::aggregate<3>(A, strong, special);
+    CHECK(again.node_agg == ag.node_agg);
+  }
+}
+
+TEST_CASE("sa: the tentative prolongator is orthonormal and interpolates the near null space") {
+  Prefiltered p = prefiltered_cloth(17, Tessellation::irregular, Pins::boundary);
+  const auto A = bsr_view(p.Ahat);
+  std::vector<double> mu;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+  const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
+  const NullSpace K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
+  const sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
+  const int n = A.rows;
+  Eigen::MatrixXd Phat = Eigen::MatrixXd::Zero(3 * n, 6 * ag.count);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Map<const BlockOf<3, 6>> Qi(t.Q.data() + 18 * i);
+    if (ag.node_agg[i] < 0) {
+      CHECK(Qi.norm() == 0.0);  // special rows: nothing
+      continue;
+    }
+    Phat.block<3, 6>(3 * i, 6 * ag.node_agg[i]) = Qi;
+  }
+  Eigen::MatrixXd I = Eigen::MatrixXd::Identity(6 * ag.count, 6 * ag.count);
+  for (int c = 0; c < 6 * ag.count; ++c)
+    if (t.dummy[c]) I(c, c) = 0;
+  CHECK((Phat.transpose() * Phat - I).norm() <= 1e-12 * std::sqrt(6.0 * ag.count));
+  Eigen::MatrixXd Kspecial_free = K;
+  for (int i = 0; i < n; ++i)
+    if (ag.node_agg[i] < 0) Kspecial_free.middleRows<3>(3 * i).setZero();
+  CHECK((Phat * t.Kc - Kspecial_free).norm() <= 1e-12 * K.norm());
+  CHECK(K.norm() > 0);
+}
+
+TEST_CASE("sa: rank-deficient aggregates are detected and counted") {
+  auto run = [](const Eigen::VectorXd& x, const ConstraintSet* c) {
+    const int n = static_cast<int>(x.size() / 3);
+    sa::Aggregates ag;
+    ag.node_agg.assign(n, 0);
+    ag.count = 1;
+    const NullSpace K = sa::rigid_body_modes(x, c);
+    sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
+    int dropped = 0;
+    for (auto d : t.dummy) dropped += d;
+    Eigen::MatrixXd Phat(3 * n, 6);
+    for (int i = 0; i < n; ++i) Phat.middleRows<3>(3 * i) = Eigen::Map<const BlockOf<3, 6>>(t.Q.data() + 18 * i);
+    CHECK((Phat * t.Kc - K).norm() <= 1e-12 * K.norm());  // dropped columns were in the span
+    return std::pair<int, int>(dropped, t.deficient);
+  };
+  // Flat 2-node aggregate: the rotation about its axis vanishes (rank 5).
+  Eigen::VectorXd two(6);
+  two << 0.3, 0.1, 0.0, 0.5, 0.4, 0.0;
+  CHECK(run(two, nullptr) == std::pair<int, int>(1, 1));
+  // Three non-collinear nodes: full rank (control).
+  Eigen::VectorXd three(9);
+  three << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  CHECK(run(three, nullptr) == std::pair<int, int>(0, 0));
+  // Flat aggregate with every vertex constrained along z (lying on a box): t_z, r_x, r_y vanish.
+  Eigen::VectorXd four(12);
+  four << 0, 0, 0.2, 1, 0, 0.2, 0, 1, 0.2, 1, 1, 0.2;
+  ConstraintSet c(4);
+  for (int i = 0; i < 4; ++i) c.add_direction(i, Eigen::Vector3d::UnitZ(), 0.0);
+  CHECK(run(four, &c) == std::pair<int, int>(3, 1));
+  CHECK(run(four, nullptr) == std::pair<int, int>(0, 0));
+}
+
+TEST_CASE("sa: the smoothed prolongator maps Kc to the smoothed near null space") {
+  Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
+  const auto A = bsr_view(p.Ahat);
+  const int n = A.rows;
+  std::vector<double> mu, Dinv;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+  const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
+  const NullSpace K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
+  const sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
+  invert_block_diagonal<3>(A, Dinv);
+  const double omega = 0.7;
+  const Eigen::MatrixXd Ad = p.Ahat.to_dense();
+  Eigen::MatrixXd Dinvd = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int i = 0; i < n; ++i) Dinvd.block<3, 3>(3 * i, 3 * i) = Eigen::Map<const BlockOf<3, 3>>(Dinv.data() + 9 * i);
+  Eigen::MatrixXd Khat = K;  // = Phat Kc: special rows zero
+  for (int i = 0; i < n; ++i)
+    if (special[i]) Khat.middleRows<3>(3 * i).setZero();
+  for (bool filtered : {false, true}) {
+    CAPTURE(filtered);
+    const std::vector<std::uint8_t>* s = filtered ? &strong : nullptr;
+    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(A, s, ag);
+    sa::prolongator_values<3>(A, Dinv, s, ag, t, omega, P);
+    Eigen::MatrixXd Af = Ad;
+    if (filtered)
+      for (int i = 0; i < n; ++i)
+        for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+          const int j = A.col[k];
+          if (j == i || strong[k]) continue;
+          Af.block<3, 3>(3 * i, 3 * i) += Ad.block<3, 3>(3 * i, 3 * j);
+          Af.block<3, 3>(3 * i, 3 * j).setZero();
+        }
+    Eigen::MatrixXd expected = Khat - omega * Dinvd * Af * Khat;
+    for (int i = 0; i < n; ++i)
+      if (special[i]) expected.middleRows<3>(3 * i).setZero();  // special rows hold nothing
+    const Eigen::MatrixXd PK = P.to_dense() * t.Kc;
+    CHECK((PK - expected).norm() <= 1e-12 * expected.norm());
+    for (int i = 0; i < n; ++i)
+      if (special[i]) CHECK(P.row_ptr()[i + 1] == P.row_ptr()[i]);  // no stored entries
+    REQUIRE(P.nnz() > n / 2);
+  }
+}
+
+TEST_CASE("sa: coarse operators are symmetric and positive definite with block size 6") {
+  Prefiltered p = prefiltered_cloth(25, Tessellation::irregular, Pins::two_sides);
+  SaAmg sa(small_coarse(10));
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+  REQUIRE(sa.levels() >= 3);
+  CHECK(sa.stats().coarse_direct);
+  for (int l = 1; l < sa.levels(); ++l) {
+    CAPTURE(l);
+    const auto& st = sa.stats().levels[l];
+    CHECK(st.block_size == 6);
+    const Eigen::MatrixXd Ac = sa.level_matrix(l);
+    CHECK((Ac - Ac.transpose()).norm() <= 1e-14 * Ac.norm());
+    Eigen::LLT<Eigen::MatrixXd> llt(Ac);
+    CHECK(llt.info() == Eigen::Success);
+    // Galerkin: A_c = P^T A P (up to the dummy-dof diagonal).
+    const Eigen::MatrixXd P = sa.prolongator(l - 1), Af = sa.level_matrix(l - 1);
+    Eigen::MatrixXd G = P.transpose() * Af * P;
+    for (int c = 0; c < G.rows(); ++c)
+      if (P.col(c).norm() == 0) G(c, c) = Ac(c, c);
+    CHECK((G - Ac).norm() <= 1e-12 * Ac.norm());
+  }
+  const PreconditionerInfo info = sa.info();
+  MESSAGE("levels " << info.levels << " operator complexity " << info.operator_complexity << " grid complexity "
+                    << info.grid_complexity << " memory " << info.memory_bytes);
+  CHECK(info.levels == sa.levels());
+  CHECK(info.operator_complexity > 1.0);
+  CHECK(info.operator_complexity < 3.0);
+  CHECK(info.memory_bytes > 0);
+}
+
+TEST_CASE("sa: Lanczos underestimates lambda_max and the inflated bound covers it") {
+  for (int m : {9, 15}) {
+    for (bool cloth : {false, true}) {
+      CAPTURE(m);
+      CAPTURE(cloth);
+      Prefiltered p = prefiltered_cloth(m, Tessellation::irregular, Pins::two_sides);
+      const BlockCsr A = cloth ? p.Ahat : support::block_laplacian(m, 0.05);
+      std::vector<double> Dinv;
+      invert_block_diagonal<3>(bsr_view(A), Dinv);
+      const sa::LanczosResult r = sa::lanczos<3>(bsr_view(A), Dinv, 10);
+      const double lmax = jacobi_spectrum(A.to_dense(), 3).maxCoeff();
+      MESSAGE("m " << m << " cloth " << cloth << ": ritz/lmax " << r.ritz / lmax << " (ritz+res)/lmax "
+                   << (r.ritz + r.residual) / lmax);
+      CHECK(r.ritz <= lmax * (1 + 1e-12));
+      CHECK(r.ritz >= 0.5 * lmax);
+      CHECK(r.ritz + r.residual >= lmax);
+      CHECK(1.2 * (r.ritz + r.residual) > lmax);  // (lower + upper) * lambda covers the spectrum
+    }
+  }
+}
+
+TEST_CASE("sa: the Chebyshev smoother is energy convergent and fails with an underestimated interval") {
+  Prefiltered p = prefiltered_cloth(11, Tessellation::irregular, Pins::two_sides);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  const Eigen::MatrixXd A = p.Ahat.to_dense();
+  const int N = static_cast<int>(A.rows());
+  const Eigen::LLT<Eigen::MatrixXd> llt(A);
+  REQUIRE(llt.info() == Eigen::Success);
+  auto max_p = [&](const SaAmg::Params& prm) {
+    SaAmg sa(prm);
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    // G = I - S A: column j is the error left from x* = e_j, f = A e_j, x0 = 0.
+    Eigen::MatrixXd G(N, N);
+    Eigen::VectorXd x(N), f(N);
+    for (int j = 0; j < N; ++j) {
+      x.setZero();
+      f = A.col(j);
+      sa.smooth(0, f, x);
+      G.col(j) = Eigen::VectorXd::Unit(N, j) - x;
+    }
+    // G = p(D^-1 A) is self-adjoint in the energy product: L^T G L^-T is symmetric (A = L L^T).
+    const Eigen::MatrixXd Lm = llt.matrixL();
+    const Eigen::MatrixXd H = Lm.transpose() * G * Lm.transpose().inverse();
+    CHECK((H - H.transpose()).norm() <= 1e-8 * H.norm());
+    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (H + H.transpose())).eigenvalues().cwiseAbs().maxCoeff();
+  };
+  SaAmg::Params good;
+  const double rho_good = max_p(good);
+  CHECK(rho_good < 1.0);
+  CHECK(rho_good > 0.5);  // low frequencies are barely damped: the check is not vacuous
+  SaAmg::Params bad;
+  bad.lambda_bound = LambdaBound::ritz;
+  bad.chebyshev_lower = 0.05;
+  bad.chebyshev_upper = 0.45;  // a + b = 0.5 lambda < lambda_max: the top of the spectrum grows
+  CHECK(max_p(bad) > 1.0);
+}
+
+TEST_CASE("sa: the V-cycle preconditioner is a symmetric positive definite map") {
+  for (Pins pins : {Pins::two_sides, Pins::reentrant}) {
+    CAPTURE(static_cast<int>(pins));
+    Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, pins);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    const int N = p.Ahat.rows();
+    SaAmg sa(small_coarse(8));
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(sa.levels() >= 3);
+    const Eigen::MatrixXd B = assemble_preconditioner(sa, N);
+    CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
+    const Eigen::MatrixXd Bs = 0.5 * (B + B.transpose());
+    const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Bs).eigenvalues();
+    CHECK(ev.minCoeff() > 0);
+    // Negative control: an interval with a + b < lambda_max makes B indefinite.
+    SaAmg::Params prm = small_coarse(8);
+    prm.lambda_bound = LambdaBound::ritz;
+    prm.chebyshev_lower = 0.03;
+    prm.chebyshev_upper = 0.3;
+    SaAmg bad(prm);
+    REQUIRE(bad.setup(p.Ahat, ctx) == Status::success);
+    const Eigen::MatrixXd Bb = assemble_preconditioner(bad, N);
+    const Eigen::VectorXd evb =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (Bb + Bb.transpose())).eigenvalues();
+    CHECK(evb.minCoeff() < 0);
+  }
+}
+
+TEST_CASE("sa: setup without positions is invalid input") {
+  BlockCsr A = support::block_laplacian(5, 0.1);
+  SaAmg sa({});
+  CHECK(sa.setup(A, SolveContext{}) == Status::invalid_input);
+  CHECK(sa.stats().message.find("positions") != std::string::npos);
+  Eigen::VectorXd wrong = Eigen::VectorXd::Zero(6);
+  CHECK(sa.setup(A, SolveContext{nullptr, &wrong}) == Status::invalid_input);
+  const Eigen::VectorXd x = grid_positions(5);
+  CHECK(sa.setup(A, SolveContext{nullptr, &x}) == Status::success);
+  // 25 nodes <= coarse_size: one level, solved exactly.
+  CHECK(sa.levels() == 1);
+  Eigen::VectorXd r = Eigen::VectorXd::LinSpaced(A.rows(), -1, 2), z;
+  sa.apply(r, z);
+  Eigen::VectorXd Az;
+  A.multiply(z, Az);
+  CHECK((Az - r).norm() <= 1e-12 * r.norm());
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.theta = 1.5}), ConfigError);
+}
+
+TEST_CASE("sa: PCG iteration counts stay bounded on block Laplacians") {
+  std::vector<int> its;
+  for (int m : {21, 41, 81}) {
+    const BlockCsr A = support::block_laplacian(m, 1e-3);
+    const Eigen::VectorXd x = grid_positions(m);
+    Eigen::VectorXd b(A.rows());
+    for (int k = 0; k < b.size(); ++k) b[k] = std::sin(0.37 * k) + 0.5;
+    SaAmg sa(small_coarse(50));
+    REQUIRE(sa.setup(A, SolveContext{nullptr, &x}) == Status::success);
+    const PcgResult r = pcg(A, b, sa);
+    MESSAGE("laplacian m " << m << ": levels " << sa.levels() << " iterations " << r.iterations << " op complexity "
+                           << sa.info().operator_complexity);
+    CHECK(r.converged);
+    its.push_back(r.iterations);
+  }
+  CHECK(its.back() <= 2 * its.front());
+}
+
+void check_cloth_iterations(Pins pins) {
+  for (Tessellation t : {Tessellation::regular, Tessellation::irregular}) {
+    std::vector<int> its;
+    for (int m : {21, 41, 81}) {
+      CAPTURE(m);
+      Prefiltered p = prefiltered_cloth(m, t, pins);
+      SaAmg sa(small_coarse(50));
+      REQUIRE(sa.setup(p.Ahat, SolveContext{&p.sys.pins, &p.sys.x}) == Status::success);
+      const PcgResult r = pcg(p.Ahat, p.chat, sa);
+      MESSAGE("cloth tess " << static_cast<int>(t) << " pins " << static_cast<int>(pins) << " m " << m << ": levels "
+                            << sa.levels() << " iterations " << r.iterations << " op complexity "
+                            << sa.info().operator_complexity);
+      CHECK(r.converged);
+      its.push_back(r.iterations);
+    }
+    CHECK(its.back() <= 2 * its.front());
+  }
+}
+
+TEST_CASE("sa: PCG iteration counts stay bounded on a cloth pinned at its boundary") { check_cloth_iterations(Pins::boundary); }
+TEST_CASE("sa: PCG iteration counts stay bounded on a cloth pinned at two sides") { check_cloth_iterations(Pins::two_sides); }
+TEST_CASE("sa: PCG iteration counts stay bounded on the re-entrant L-shape") { check_cloth_iterations(Pins::reentrant); }
+
+TEST_CASE("sa: reuse levels give the same map for the same matrix and frozen keeps it") {
+  Prefiltered p = prefiltered_cloth(21, Tessellation::irregular, Pins::two_sides);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  Eigen::VectorXd r(p.Ahat.rows()), z0, z1, z2;
+  for (int k = 0; k < r.size(); ++k) r[k] = std::cos(0.1 * k);
+  SaAmg none({});
+  REQUIRE(none.setup(p.Ahat, ctx) == Status::success);
+  none.apply(r, z0);
+  for (SaReuse reuse : {SaReuse::aggregates, SaReuse::frozen}) {
+    CAPTURE(static_cast<int>(reuse));
+    SaAmg::Params prm;
+    prm.reuse = reuse;
+    SaAmg sa(prm);
+    REQUIRE(sa.analyze_pattern(p.Ahat) == Status::success);
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    CHECK_FALSE(sa.stats().reused);
+    sa.apply(r, z1);
+    CHECK((z1 - z0).norm() <= 1e-12 * z0.norm());
+    // Same pattern, new values: aggregates recomputes the numbers, frozen keeps the old map.
+    BlockCsr A2 = p.Ahat;
+    A2.scale(2.0);
+    REQUIRE(sa.setup(A2, ctx) == Status::success);
+    CHECK(sa.stats().reused);
+    sa.apply(r, z2);
+    if (reuse == SaReuse::aggregates)
+      CHECK((2 * z2 - z0).norm() <= 1e-10 * z0.norm());  // B(2A) = B(A) / 2
+    else
+      CHECK((z2 - z0).norm() <= 1e-12 * z0.norm());
+    const PcgResult res = pcg(A2, p.chat, sa);
+    CHECK(res.converged);
+    // analyze_pattern forgets everything.
+    REQUIRE(sa.analyze_pattern(A2) == Status::success);
+    REQUIRE(sa.setup(A2, ctx) == Status::success);
+    CHECK_FALSE(sa.stats().reused);
+    sa.apply(r, z2);
+    CHECK((2 * z2 - z0).norm() <= 1e-10 * z0.norm());
+  }
+}
+
+#ifdef WEFT_WITH_OPENMP
+TEST_CASE("sa: setup and apply do not depend on the thread count") {
+  Prefiltered p = prefiltered_cloth(61, Tessellation::irregular, Pins::reentrant);
+  REQUIRE(p.Ahat.block_rows() > parallel_rows);  // the fine level runs in parallel
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  Eigen::VectorXd r(p.Ahat.rows()), z1, z2;
+  for (int k = 0; k < r.size(); ++k) r[k] = std::sin(0.3 * k);
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  SaAmg a({});
+  REQUIRE(a.setup(p.Ahat, ctx) == Status::success);
+  a.apply(r, z1);
+  omp_set_num_threads(std::max(2, threads));
+  SaAmg b({});
+  REQUIRE(b.setup(p.Ahat, ctx) == Status::success);
+  b.apply(r, z2);
+  omp_set_num_threads(threads);
+  CHECK(z1.norm() > 0);
+  CHECK((z1 - z2).norm() == 0.0);
+}
+#endif
+
+}  // TEST_SUITE("linear")
+
+TEST_SUITE("slow") {
+
+TEST_CASE("sa: timing on a 301 x 301 cloth (WEFT_SA_TIMING_M to change)") {
+  // WEFT_SA_TIMING_M=1001 gives the 1M-vertex case.
+  const char* env = std::getenv("WEFT_SA_TIMING_M");
+  const int m = env ? std::atoi(env) : 301;
+  for (Tessellation t : {Tessellation::regular}) {
+    auto tb = std::chrono::steady_clock::now();
+    Prefiltered p = prefiltered_cloth(m, t, Pins::boundary);
+    std::printf("cloth %d built in %.1f s\n", m, std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count());
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    SaAmg sa({});
+    auto now = [] { return std::chrono::steady_clock::now(); };
+    auto t0 = now();
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    const double setup = std::chrono::duration<double>(now() - t0).count();
+    Eigen::VectorXd z;
+    t0 = now();
+    for (int k = 0; k < 10; ++k) sa.apply(p.chat, z);
+    const double apply = std::chrono::duration<double>(now() - t0).count() / 10;
+    t0 = now();
+    const PcgResult r = pcg(p.Ahat, p.chat, sa);
+    const double solve = std::chrono::duration<double>(now() - t0).count();
+    const auto& T = sa.stats().times;
+    const PreconditionerInfo info = sa.info();
+    const double fine_bytes = p.Ahat.num_blocks() * (9.0 * 8 + 4) + p.Ahat.block_rows() * 8.0;
+    std::printf("sa %d: setup %.3f s (strength %.3f aggregation %.3f qr %.3f smoothing %.3f galerkin %.3f lanczos %.3f "
+                "other %.3f) apply %.4f s pcg %d it %.3f s levels %d opc %.3f gridc %.3f memory %.1f MB (fine A %.1f MB)\n",
+                m, setup, T.strength, T.aggregation, T.qr, T.smoothing, T.galerkin, T.lanczos, T.other, apply,
+                r.iterations, solve, info.levels, info.operator_complexity, info.grid_complexity,
+                info.memory_bytes / 1e6, fine_bytes / 1e6);
+    for (const auto& l : sa.stats().levels)
+      std::printf("  level rows %d b %d nnz %lld special %d aggs %d deficient %d maxagg %d nnzP %lld ritz %.4f lambda %.4f\n",
+                  l.rows, l.block_size, l.nnz_blocks, l.special, l.aggregates, l.deficient, l.max_aggregate, l.nnz_p,
+                  l.ritz, l.lambda);
+    CHECK(r.converged);
+  }
+}
+
+TEST_CASE("sa: smoother and strength parameter sweep") {
+  for (Pins pins : {Pins::boundary, Pins::two_sides, Pins::reentrant}) {
+    Prefiltered p = prefiltered_cloth(pins == Pins::reentrant ? 201 : 201, Tessellation::irregular, pins);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    struct Case { double lower, upper, theta; int degree; };
+    for (const Case c : {Case{0.1, 1.1, 0.48, 2}, Case{1.0 / 30, 1.1, 0.48, 2}, Case{0.05, 1.1, 0.48, 2}, Case{0.2, 1.1, 0.48, 2},
+                         Case{0.3, 1.1, 0.48, 2}, Case{0.1, 1.0, 0.48, 2}, Case{0.1, 1.3, 0.48, 2}, Case{0.2, 1.0, 0.48, 2},
+                         Case{0.1, 1.1, 0.48, 3}, Case{0.1, 1.1, 0.25, 2}, Case{0.1, 1.1, 0.7, 2}}) {
+      SaAmg::Params prm;
+      prm.chebyshev_lower = c.lower;
+      prm.chebyshev_upper = c.upper;
+      prm.theta = c.theta;
+      prm.chebyshev_degree = c.degree;
+      SaAmg sa(prm);
+      auto now = [] { return std::chrono::steady_clock::now(); };
+      auto t0 = now();
+      REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+      const double setup = std::chrono::duration<double>(now() - t0).count();
+      t0 = now();
+      const PcgResult r = pcg(p.Ahat, p.chat, sa);
+      const double solve = std::chrono::duration<double>(now() - t0).count();
+      std::printf("sweep pins %d lower %.3f upper %.2f theta %.2f degree %d: levels %d opc %.3f it %d setup %.3f s solve %.3f s\n",
+                  static_cast<int>(pins), c.lower, c.upper, c.theta, c.degree, sa.levels(), sa.info().operator_complexity,
+                  r.iterations, setup, solve);
+      CHECK(r.converged);
+    }
+  }
+}
+
+}  // TEST_SUITE("slow")
