@@ -180,7 +180,7 @@ class SaAmg {
     SocMeasure strength = SocMeasure::spectral;
     double diagonal_dominance = 1e-2;  ///< tau_dd: special if sum_j mu_ij < tau_dd
     bool filtered_smoothing = true;    ///< smooth P with A_f (weak blocks lumped into the diagonal)
-    int coarse_size = 200;             ///< stop coarsening at <= this many nodes
+    int coarse_size = 50;             ///< stop coarsening at <= this many nodes
     int max_levels = 10;
     double stall_ratio = 0.8;          ///< stop when n_{l+1} > stall_ratio n_l
     int dense_limit = 4000;            ///< largest coarsest level (dofs) solved densely; above: smoother only
