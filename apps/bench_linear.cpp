@@ -25,6 +25,7 @@
 #endif
 
 #include "apps/bench_linear_systems.hpp"
+#include "apps/bench_common.hpp"
 #include "apps/runner.hpp"
 #include "framework/params_json.hpp"
 
@@ -62,29 +63,6 @@ constexpr double thesis_vs_pardiso[2][12][5] = {
     {{0.87, 0.80, 0.80, 0.64, 0.71}, {1.17, 1.12, 1.04, 0.94, 1.01}, {1.61, 1.45, 1.39, 1.21, 1.06}, {1.86, 1.65, 1.72, 1.44, 1.32},
      {2.06, 1.87, 1.93, 1.74, 1.42}, {2.49, 2.11, 2.20, 2.13, 1.43}, {2.61, 2.21, 2.32, 2.23, 1.56}, {2.54, 2.21, 2.33, 2.19, 1.39},
      {2.45, 2.18, 2.16, 2.10, 1.39}, {2.49, 2.22, 2.21, 2.13, 1.57}, {2.56, 2.24, 2.19, 2.21, 1.68}, {2.73, 2.56, 2.47, 2.08, 1.71}}};
-
-std::string cpu_model() {
-  std::ifstream f("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("model name", 0) == 0) {
-      const auto p = line.find(':');
-      if (p != std::string::npos) return line.substr(p + 2);
-    }
-  return "unknown";
-}
-
-std::string git_describe(const std::string& source_dir) {
-  if (source_dir.empty()) return "unknown";
-  const std::string cmd = "git -C '" + source_dir + "' describe --always --dirty 2>/dev/null";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return "unknown";
-  char buf[128] = {0};
-  std::string out = fgets(buf, sizeof buf, p) ? buf : "";
-  pclose(p);
-  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
-  return out.empty() ? "unknown" : out;
-}
 
 // ---- memory ----
 /// Resets the kernel's peak-RSS mark of this process (Linux >= 4.0); false if unsupported.

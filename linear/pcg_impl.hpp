@@ -82,6 +82,23 @@ LinearReport refuse(const Slot& slot, double setup_seconds) {
   return rep;
 }
 
+/// The report of a solve that cannot run: no factorize, a failed preconditioner set-up, a
+/// constraint set or right-hand side of the wrong size. Returns false when the solve may run.
+template <class Slot>
+bool refuse_solve(const Slot& slot, const BlockCsr* A, const Eigen::VectorXd& b, const std::string& input_error,
+                  double setup_seconds, LinearReport& rep) {
+  if (A && slot.status() == Status::success && b.size() == A->rows()) return false;
+  rep = refuse(slot, setup_seconds);
+  if (!input_error.empty()) {
+    rep.status = Status::invalid_input;
+    rep.message = input_error;
+  } else if (slot.status() == Status::success) {
+    rep.status = Status::invalid_input;
+    rep.message = A ? "right-hand side of the wrong size" : "call factorize() before solve()";
+  }
+  return true;
+}
+
 }  // namespace detail
 
 // ---------------------------------------------------------------------------------------
@@ -121,18 +138,8 @@ template <Preconditioner P>
 LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const double setup_seconds = setup_seconds_;
   setup_seconds_ = 0;
-  if (!A_ || slot_.status() != Status::success || b.size() != A_->rows()) {
-    LinearReport rep = detail::refuse(slot_, setup_seconds);
-    if (!input_error_.empty()) {
-      rep.status = Status::invalid_input;
-      rep.message = input_error_;
-    } else if (slot_.status() == Status::success) {
-      rep.status = Status::invalid_input;
-      rep.message = A_ ? "right-hand side of the wrong size" : "call factorize() before solve()";
-    }
-    return rep;
-  }
   LinearReport rep;
+  if (detail::refuse_solve(slot_, A_, b, input_error_, setup_seconds, rep)) return rep;
   rep.solves = 1;
   rep.setup_seconds = setup_seconds;
   const ConstraintSet* c = constraints();
@@ -194,19 +201,11 @@ template <Preconditioner P>
 LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const double setup_seconds = setup_seconds_;
   setup_seconds_ = 0;
-  if (!A_ || slot_.status() != Status::success || b.size() != A_->rows()) {
-    LinearReport rep = detail::refuse(slot_, setup_seconds);
-    if (!input_error_.empty()) {
-      rep.status = Status::invalid_input;
-      rep.message = input_error_;
-    } else if (slot_.status() == Status::success) {
-      rep.status = Status::invalid_input;
-      rep.message = A_ ? "right-hand side of the wrong size" : "call factorize() before solve()";
-    }
+  LinearReport rep;
+  if (detail::refuse_solve(slot_, A_, b, input_error_, setup_seconds, rep)) {
     rep.prefilter_seconds = pre_.take_seconds();
     return rep;
   }
-  LinearReport rep;
   rep.solves = 1;
   rep.setup_seconds = setup_seconds;
   const ConstraintSet* c = constraints();

@@ -25,25 +25,6 @@ BlockCsr block_laplacian(const TriangleMesh& m, double k, double mass) {
   return A;
 }
 
-// Dense KKT solve [[A C^T][C 0]] [x; lambda] = [b; C z] of the constrained problem (spec 04 §7.1).
-Eigen::VectorXd kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
-  const int n = A.rows();
-  int m = 0;
-  for (int i = 0; i < c.num_vertices(); ++i) m += c.count(i);
-  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n + m, n + m);
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + m);
-  K.topLeftCorner(n, n) = A.to_dense();
-  rhs.head(n) = b;
-  int row = n;
-  for (int i = 0; i < c.num_vertices(); ++i)
-    for (int k = 0; k < c.count(i); ++k, ++row) {
-      const Eigen::Vector3d nk = c.directions(i).col(k);
-      K.block<1, 3>(row, 3 * i) = nk.transpose();
-      K.block<3, 1>(3 * i, row) = nk;
-      rhs[row] = nk.dot(c.target().segment<3>(3 * i));
-    }
-  return K.fullPivLu().solve(rhs).head(n);
-}
 }  // namespace
 
 TEST_SUITE("linear") {
@@ -103,7 +84,7 @@ TEST_SUITE("linear") {
       const LinearReport r = solver.solve(sys.b, x);
       CHECK(r.status == Status::success);
       CHECK(r.negative_pivots == 0);
-      const Eigen::VectorXd ref = kkt_solve(sys.A, sys.b, c);
+      const Eigen::VectorXd ref = support::dense_kkt_solve(sys.A, sys.b, c);
       REQUIRE(ref.norm() > 0);
       CHECK((x - ref).norm() <= 1e-9 * ref.norm());
       CHECK(r.constraint_violation == c.violation(x));

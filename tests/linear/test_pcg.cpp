@@ -92,25 +92,6 @@ void check_converged(const LinearReport& r, double tolerance) {
   CHECK(r.solves == 1);
 }
 
-/// Dense KKT solve [[A C^T][C 0]] [x; lambda] = [b; C z] (spec 04 §7.1).
-Eigen::VectorXd kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
-  const int n = A.rows();
-  int m = 0;
-  for (int i = 0; i < c.num_vertices(); ++i) m += c.count(i);
-  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n + m, n + m);
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + m);
-  K.topLeftCorner(n, n) = A.to_dense();
-  rhs.head(n) = b;
-  int row = n;
-  for (int i = 0; i < c.num_vertices(); ++i)
-    for (int k = 0; k < c.count(i); ++k, ++row) {
-      const Eigen::Vector3d nk = c.directions(i).col(k);
-      K.block<1, 3>(row, 3 * i) = nk.transpose();
-      K.block<3, 1>(3 * i, row) = nk;
-      rhs[row] = nk.dot(c.target().segment<3>(3 * i));
-    }
-  return K.fullPivLu().solve(rhs).head(n);
-}
 
 /// Null-space solve V^T A V u = V^T (b - A z), x = z + V u with V an orthonormal basis of range(S).
 Eigen::VectorXd nullspace_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
@@ -268,7 +249,7 @@ TEST_SUITE("linear") {
     for (const Case& k : cases) {
       CAPTURE(k.what);
       for (int m = 1; m <= 3; ++m) REQUIRE(count_with(k.c, m) > 0);
-      const Eigen::VectorXd x_kkt = kkt_solve(k.A, k.b, k.c);
+      const Eigen::VectorXd x_kkt = support::dense_kkt_solve(k.A, k.b, k.c);
       const Eigen::VectorXd x_ns = nullspace_solve(k.A, k.b, k.c);
       REQUIRE(rel(x_ns, x_kkt) <= 1e-10);  // the two references agree
       linear::DiagPpcg::Params prm{.tolerance = 1e-12};
@@ -434,7 +415,7 @@ TEST_SUITE("linear") {
     REQUIRE(count_with(c, 1) > 0);
     REQUIRE(count_with(c, 2) > 0);
     REQUIRE(count_with(c, 3) == 0);
-    const Eigen::VectorXd x_kkt = kkt_solve(sys.A, sys.b, c);
+    const Eigen::VectorXd x_kkt = support::dense_kkt_solve(sys.A, sys.b, c);
     const Solved s = run<Solver>(sys.A, sys.b, &c, {.tolerance = 1e-10});
     check_converged(s.rep, 1e-10);
     CHECK(rel(s.x, x_kkt) <= 1e-6);

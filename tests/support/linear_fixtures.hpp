@@ -4,6 +4,7 @@
 /// assembled cloth matrices A = M + dt^2 H (StVK membrane + hinge bending at a sagged,
 /// stressed state; PSD-projected element Hessians so A is SPD) with pin constraints.
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -120,6 +121,27 @@ inline ClothSystem cloth_system(int m, Tessellation t = Tessellation::regular, P
     if (pin) sys.pins.fix(i, Eigen::Vector3d(h * std::sin(7 * u), h * std::cos(5 * v), h * u * v));
   }
   return sys;
+}
+
+/// Ground truth for constrained solves: the dense KKT system [[A C^T][C 0]] [x; lambda] =
+/// [b; C z] (spec 04 §7.1), rows of C the constrained directions n_{i,m}^T, by full-pivot LU.
+inline Eigen::VectorXd dense_kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
+  const int n = A.rows();
+  int m = 0;
+  for (int i = 0; i < c.num_vertices(); ++i) m += c.count(i);
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n + m, n + m);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + m);
+  K.topLeftCorner(n, n) = A.to_dense();
+  rhs.head(n) = b;
+  int row = n;
+  for (int i = 0; i < c.num_vertices(); ++i)
+    for (int k = 0; k < c.count(i); ++k, ++row) {
+      const Eigen::Vector3d nk = c.directions(i).col(k);
+      K.block<1, 3>(row, 3 * i) = nk.transpose();
+      K.block<3, 1>(3 * i, row) = nk;
+      rhs[row] = nk.dot(c.target().segment<3>(3 * i));
+    }
+  return K.fullPivLu().solve(rhs).head(n);
 }
 
 }  // namespace weft::support

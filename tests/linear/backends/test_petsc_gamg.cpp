@@ -3,7 +3,6 @@
 #include <Eigen/Dense>
 
 #include "linear/backends/petsc_gamg.hpp"
-#include "tests/linear/backends/kkt_reference.hpp"
 #include "tests/support/linear_fixtures.hpp"
 
 using namespace weft;

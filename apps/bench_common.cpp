@@ -1,0 +1,31 @@
+#include "apps/bench_common.hpp"
+
+#include <cstdio>
+#include <fstream>
+
+namespace weft::app {
+
+std::string cpu_model() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("model name", 0) == 0) {
+      const auto p = line.find(':');
+      if (p != std::string::npos) return line.substr(p + 2);
+    }
+  return "unknown";
+}
+
+std::string git_describe(const std::string& source_dir) {
+  if (source_dir.empty()) return "unknown";
+  const std::string cmd = "git -C '" + source_dir + "' describe --always --dirty 2>/dev/null";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return "unknown";
+  char buf[128] = {0};
+  std::string out = fgets(buf, sizeof buf, p) ? buf : "";
+  pclose(p);
+  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+  return out.empty() ? "unknown" : out;
+}
+
+}  // namespace weft::app
