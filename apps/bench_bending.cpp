@@ -192,7 +192,8 @@ Resolution run_resolution(int n, const std::string& scene_path, const std::vecto
   AssemblyPlan plan;
   model.declare(plan);
   plan.finalize(scene.mesh.num_vertices());
-  ElementBuffer buf = plan.make_buffer();
+  // Stored mode: "f+H" fills every element's slot, "+assembly" adds the gather (thesis Table 5.x).
+  ElementBuffer buf = plan.make_buffer(AssemblyMode::stored);
   BlockCsr H[num_methods] = {plan.pattern(), plan.pattern(), plan.pattern()};
   Eigen::VectorXd g = Eigen::VectorXd::Zero(3 * r.vertices);
   auto evaluate = [&](int m, const State& s, Eigen::VectorXd* grad) {

@@ -153,6 +153,7 @@ LinearBenchSimulation::LinearBenchSimulation(const ExampleConfig& cfg) : cfg_(cf
   models_->membrane.declare(models_->plan);
   models_->bending.declare(models_->plan);
   models_->plan.finalize(n_);
+  models_->buf = models_->plan.make_buffer();
   A_ = models_->plan.pattern();
 
   state_.mass = scene_.lumped_masses();
@@ -289,22 +290,16 @@ StepCounts LinearBenchSimulation::build_system() {
   g_.setZero();
   models_->membrane.add_gradient(state_, g_);
   models_->bending.add_gradient(state_, g_);
-  // The element buffer (4.75 kB per vertex: every element's local blocks) lives only during
-  // the assembly on large meshes, so that its peak does not stack on the solvers' memory
-  // (a 1M-vertex sheet: ~5 GB of element blocks, ~12 GB of CHOLMOD factor).
-  const bool transient_buffer = n_ > kTransientBufferVertices;
-  if (transient_buffer || !buffer_ready_) {
-    models_->buf = models_->plan.make_buffer();
-    buffer_ready_ = true;
-  }
+  // Element Hessians go straight into the block matrix (direct assembly: no element storage).
+  if (union_pattern_ && H_.num_blocks() != models_->plan.pattern().num_blocks()) H_ = models_->plan.pattern();
+  BlockCsr& target = union_pattern_ ? H_ : A_;
+  models_->buf.start(target);
   models_->membrane.add_hessian(state_, models_->buf, HessianMode::projected);
   models_->bending.add_hessian(state_, models_->buf, HessianMode::projected);
+  models_->buf.finish();
   if (!union_pattern_) {
-    models_->plan.gather(models_->buf, A_);
     A_.scale(dt * dt);
   } else {
-    if (H_.num_blocks() != models_->plan.pattern().num_blocks()) H_ = models_->plan.pattern();
-    models_->plan.gather(models_->buf, H_);
     A_.set_zero();
     double* a = A_.values().data();
     const double* h = H_.values().data();
@@ -328,7 +323,6 @@ StepCounts LinearBenchSimulation::build_system() {
       g_.segment<3>(3 * j) += f;
     }
   }
-  if (transient_buffer) models_->buf = ElementBuffer{};
   A_.add_diagonal(mass3_);
   for (int i = 0; i < n_; ++i)
     b_.segment<3>(3 * i) = dt * state_.mass[i] * v.segment<3>(3 * i) - dt * dt * (g_.segment<3>(3 * i) - state_.mass[i] * gravity);

@@ -123,10 +123,6 @@ class LinearBenchSimulation {
   std::size_t matrix_bytes() const;
 
  private:
-  /// Above this many vertices the element buffer is allocated for each assembly and freed
-  /// right after the gather (its peak must not stack on the solvers' memory).
-  static constexpr int kTransientBufferVertices = 250000;
-  bool buffer_ready_ = false;
   struct Models;
   void detect_springs();
   void rebuild_union_pattern();

@@ -131,9 +131,7 @@ void ObstaclePenalty::add_gradient(const State& s, Eigen::VectorXd& g) const {
 }
 
 void ObstaclePenalty::add_hessian(const State& s, ElementBuffer& buf, HessianMode mode) const {
-  const int n = s.num_vertices();
-#pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) {
+  buf.for_each(group_, [&](int i) {
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     if (free_[i])
       for (const auto& p : poses_) {
@@ -143,8 +141,8 @@ void ObstaclePenalty::add_hessian(const State& s, ElementBuffer& buf, HessianMod
         H += kappa_ * mass_[i] * d.grad * d.grad.transpose();
         if (mode == HessianMode::exact) H -= kappa_ * mass_[i] * gap * d.hess;
       }
-    buf.block(group_, i, 0, 0) = H;
-  }
+    buf.set(group_, i, H);
+  });
 }
 
 ContactReport ObstaclePenalty::end_step(State& s, double) {

@@ -1,6 +1,8 @@
 #include "framework/block_csr.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 
 #include "framework/error.hpp"
 
@@ -97,14 +99,113 @@ Eigen::MatrixXd BlockCsr::to_dense() const {
   return d;
 }
 
+Colouring::Colouring(std::span<const int> ptr, std::span<const int> ids, int num_vertices) {
+  const int n = static_cast<int>(ptr.size()) - 1;
+  // used[v * words + w]: bit b set when vertex v already belongs to an element of colour
+  // 64 w + b. The word count grows if some vertex needs more than 64 colours.
+  int words = 1;
+  std::vector<std::uint64_t> used(num_vertices, 0);
+  std::vector<int> colour(n);
+  int num_colours = 0;
+  for (int s = 0; s < n; ++s) {
+    int c = -1;
+    for (int w = 0; c < 0; ++w) {
+      if (w == words) {  // every colour so far is taken around this element: widen
+        std::vector<std::uint64_t> wider(static_cast<size_t>(num_vertices) * (words + 1), 0);
+        for (int v = 0; v < num_vertices; ++v)
+          std::copy_n(used.begin() + static_cast<size_t>(v) * words, words, wider.begin() + static_cast<size_t>(v) * (words + 1));
+        used.swap(wider);
+        ++words;
+      }
+      std::uint64_t taken = 0;
+      for (int q = ptr[s]; q < ptr[s + 1]; ++q) taken |= used[static_cast<size_t>(ids[q]) * words + w];
+      if (~taken) c = 64 * w + std::countr_one(taken);
+    }
+    for (int q = ptr[s]; q < ptr[s + 1]; ++q) used[static_cast<size_t>(ids[q]) * words + c / 64] |= std::uint64_t{1} << (c % 64);
+    colour[s] = c;
+    num_colours = std::max(num_colours, c + 1);
+  }
+  ptr_.assign(num_colours + 1, 0);
+  for (int s = 0; s < n; ++s) ++ptr_[colour[s] + 1];
+  for (int c = 0; c < num_colours; ++c) ptr_[c + 1] += ptr_[c];
+  order_.resize(n);
+  std::vector<int> fill(ptr_.begin(), ptr_.end() - 1);
+  for (int s = 0; s < n; ++s) order_[fill[colour[s]]++] = s;
+}
+
+Colouring Colouring::uniform(std::span<const int> ids, int stencil, int num_vertices) {
+  std::vector<int> ptr(ids.size() / stencil + 1);
+  for (size_t s = 0; s < ptr.size(); ++s) ptr[s] = static_cast<int>(s) * stencil;
+  return Colouring(ptr, ids, num_vertices);
+}
+
+ElementBuffer::Slot::Slot(ElementBuffer& buf, int group, int e) : buf_(buf) {
+  const detail::PlanMaps& m = *buf.maps_;
+  k_ = m.stencil[group];
+  first_ = m.first_block[group] + static_cast<size_t>(e) * k_ * k_;
+  if (buf.mode_ == AssemblyMode::stored) {
+    data_ = buf.data_.data() + 9 * first_;
+  } else {
+    WEFT_ASSERT(k_ <= max_stencil, "stencil {} exceeds ElementBuffer::max_stencil", k_);
+    WEFT_ASSERT(buf.target_, "{}", "ElementBuffer: write outside start() / finish()");
+    data_ = local_.data();
+    std::fill_n(data_, 9 * k_ * k_, 0.0);
+  }
+}
+
+ElementBuffer::Slot::~Slot() {
+  if (buf_.mode_ != AssemblyMode::direct) return;
+  const int* dst = buf_.maps_->destination.data() + first_;
+  double* values = buf_.target_->values().data();
+  for (int q = 0; q < k_ * k_; ++q) {
+    double* out = values + 9 * static_cast<size_t>(dst[q]);
+    const double* in = data_ + 9 * q;
+    for (int r = 0; r < 9; ++r) out[r] += in[r];
+  }
+}
+
+void ElementBuffer::start(BlockCsr& out) {
+  WEFT_ASSERT(maps_, "{}", "ElementBuffer: not made by AssemblyPlan::make_buffer");
+  WEFT_ASSERT(out.num_blocks() == maps_->num_blocks, "{}", "matrix does not have the plan's pattern");
+  target_ = &out;
+  if (mode_ == AssemblyMode::direct) out.set_zero();
+}
+
+void ElementBuffer::finish() {
+  WEFT_ASSERT(target_, "{}", "ElementBuffer::finish without start");
+  if (mode_ == AssemblyMode::stored) gather_into(*target_);
+  target_ = nullptr;
+}
+
+void ElementBuffer::gather_into(BlockCsr& out) const {
+  const detail::PlanMaps& m = *maps_;
+  const int nb = out.num_blocks();
+  WEFT_ASSERT(mode_ == AssemblyMode::stored, "{}", "gather needs a stored-mode buffer");
+  WEFT_ASSERT(nb == m.num_blocks, "{}", "matrix does not have the plan's pattern");
+  const double* src = data_.data();
+  double* dst = out.values().data();
+#pragma omp parallel for schedule(static)
+  for (int b = 0; b < nb; ++b) {
+    double acc[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    for (size_t s = m.src_ptr[b]; s < m.src_ptr[b + 1]; ++s) {
+      const double* blk = src + 9 * m.src[s];
+      for (int q = 0; q < 9; ++q) acc[q] += blk[q];
+    }
+    for (int q = 0; q < 9; ++q) dst[9 * static_cast<size_t>(b) + q] = acc[q];
+  }
+}
+
 Eigen::Map<Block3> ElementBuffer::block(int group, int e, int a, int b) {
-  const int k = stencil_[group];
-  return Eigen::Map<Block3>(data_.data() + offset_[group] + 9 * (static_cast<size_t>(e) * k * k + a * k + b));
+  WEFT_ASSERT(mode_ == AssemblyMode::stored, "{}", "ElementBuffer::block needs stored mode: use slot()");
+  const int k = maps_->stencil[group];
+  return Eigen::Map<Block3>(data_.data() + 9 * (maps_->first_block[group] + static_cast<size_t>(e) * k * k + a * k + b));
 }
 
 void ElementBuffer::zero_group(int group) {
-  const size_t end = group + 1 < static_cast<int>(offset_.size()) ? offset_[group + 1] : data_.size();
-  std::fill(data_.begin() + offset_[group], data_.begin() + end, 0.0);
+  if (mode_ == AssemblyMode::direct) return;
+  const size_t begin = 9 * maps_->first_block[group];
+  const size_t end = group + 1 < static_cast<int>(maps_->first_block.size()) ? 9 * maps_->first_block[group + 1] : data_.size();
+  std::fill(data_.begin() + begin, data_.begin() + end, 0.0);
 }
 
 int AssemblyPlan::add_group(int stencil_size, std::span<const int> vertex_ids) {
@@ -128,56 +229,53 @@ void AssemblyPlan::finalize(int num_vertices) {
         }
   }
   pattern_ = BlockCsr(cols);
+  cols = {};
 
-  // Gather lists: counting sort of (matrix block, buffer block) pairs by matrix block,
-  // visiting elements in registration order, so each sum has a fixed order.
-  std::vector<std::pair<int, size_t>> pairs;
-  size_t base = 0;
+  auto maps = std::make_shared<detail::PlanMaps>();
+  maps->stencil = stencil_;
+  maps->num_blocks = pattern_.num_blocks();
+  size_t blocks = 0;
+  for (size_t g = 0; g < ids_.size(); ++g) {
+    maps->first_block.push_back(blocks);
+    blocks += ids_[g].size() * stencil_[g];  // (#elements * k) * k
+  }
+  maps->destination.resize(blocks);
   for (size_t g = 0; g < ids_.size(); ++g) {
     const int k = stencil_[g];
     const size_t ne = ids_[g].size() / k;
+    int* dst = maps->destination.data() + maps->first_block[g];
+#pragma omp parallel for schedule(static)
     for (size_t e = 0; e < ne; ++e)
       for (int a = 0; a < k; ++a)
-        for (int b = 0; b < k; ++b)
-          pairs.emplace_back(pattern_.find(ids_[g][e * k + a], ids_[g][e * k + b]), base + e * k * k + a * k + b);
-    base += ne * k * k;
+        for (int b = 0; b < k; ++b) dst[e * k * k + a * k + b] = pattern_.find(ids_[g][e * k + a], ids_[g][e * k + b]);
+    maps->colouring.push_back(Colouring::uniform(ids_[g], k, num_vertices));
   }
-  src_ptr_.assign(pattern_.num_blocks() + 1, 0);
-  for (const auto& p : pairs) ++src_ptr_[p.first + 1];
-  for (size_t m = 0; m + 1 < src_ptr_.size(); ++m) src_ptr_[m + 1] += src_ptr_[m];
-  src_.resize(pairs.size());
-  std::vector<size_t> fill(src_ptr_.begin(), src_ptr_.end() - 1);
-  for (const auto& p : pairs) src_[fill[p.first]++] = p.second;
+  maps_ = std::move(maps);
   finalized_ = true;
 }
 
-ElementBuffer AssemblyPlan::make_buffer() const {
+ElementBuffer AssemblyPlan::make_buffer(AssemblyMode mode) {
   WEFT_ASSERT(finalized_, "{}", "call finalize() before make_buffer()");
-  ElementBuffer b;
-  b.stencil_ = stencil_;
-  size_t off = 0;
-  for (size_t g = 0; g < ids_.size(); ++g) {
-    b.offset_.push_back(off);
-    off += 9 * ids_[g].size() * stencil_[g];  // (#elements * k) * k blocks of 9
+  if (mode == AssemblyMode::stored && maps_->src_ptr.empty()) {
+    // Gather lists: counting sort of the element blocks by matrix block, in element order,
+    // so that each sum has a fixed order.
+    const std::vector<int>& dst = maps_->destination;
+    maps_->src_ptr.assign(pattern_.num_blocks() + 1, 0);
+    for (int d : dst) ++maps_->src_ptr[d + 1];
+    for (size_t m = 0; m + 1 < maps_->src_ptr.size(); ++m) maps_->src_ptr[m + 1] += maps_->src_ptr[m];
+    maps_->src.resize(dst.size());
+    std::vector<size_t> fill(maps_->src_ptr.begin(), maps_->src_ptr.end() - 1);
+    for (size_t q = 0; q < dst.size(); ++q) maps_->src[fill[dst[q]]++] = q;
   }
-  b.data_.assign(off, 0.0);
+  ElementBuffer b;
+  b.mode_ = mode;
+  b.maps_ = maps_;
+  if (mode == AssemblyMode::stored) b.data_.assign(9 * maps_->destination.size(), 0.0);
   return b;
 }
 
 void AssemblyPlan::gather(const ElementBuffer& buffer, BlockCsr& out) const {
-  WEFT_ASSERT(out.num_blocks() == pattern_.num_blocks(), "{}", "matrix does not have the plan's pattern");
-  const int nb = pattern_.num_blocks();
-  const double* src = buffer.data_.data();
-  double* dst = out.values().data();
-#pragma omp parallel for schedule(static)
-  for (int m = 0; m < nb; ++m) {
-    double acc[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-    for (size_t s = src_ptr_[m]; s < src_ptr_[m + 1]; ++s) {
-      const double* blk = src + 9 * src_[s];
-      for (int q = 0; q < 9; ++q) acc[q] += blk[q];
-    }
-    for (int q = 0; q < 9; ++q) dst[9 * m + q] = acc[q];
-  }
+  buffer.gather_into(out);
 }
 
 }  // namespace weft

@@ -3,14 +3,20 @@
 /// Sparse matrices with 3x3 blocks, and the assembly plan that fills them.
 ///
 /// The symmetric sparsity pattern is built once per topology (`AssemblyPlan::finalize`)
-/// and reused for every evaluation. Element kernels write their local matrices into an
-/// `ElementBuffer`, one private slot per element (no sharing, so any number of threads
-/// may write at once); `AssemblyPlan::gather` then sums, for every block of the matrix,
-/// the element blocks that land on it, in a fixed order. The assembly therefore needs no
-/// locks or atomics and is bitwise deterministic whatever the number of threads.
+/// and reused for every evaluation. Element kernels write their local matrices through an
+/// `ElementBuffer`: by default each element adds its blocks straight into the matrix, the
+/// elements visited colour by colour so that concurrent writers never share a vertex
+/// (`AssemblyMode::direct`); optionally every element keeps a private slot and a gather sums
+/// them (`AssemblyMode::stored`). Either way the assembly needs no locks or atomics and is
+/// bitwise deterministic whatever the number of threads.
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
+#include <array>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -64,28 +70,152 @@ class BlockCsr {
   std::vector<double> values_;
 };
 
-/// Per-evaluation storage for local element Hessians. Element e of group g has a
-/// k x k array of 3x3 blocks (k = stencil size), stored block-major, row-major blocks.
+/// Classes of elements whose vertex sets are pairwise disjoint, so that the elements of one
+/// class may add into a matrix at the same time without touching the same block. Greedy
+/// first-fit in element order: deterministic, and the classes are visited in a fixed order,
+/// so every matrix block sums its contributions in the same order whatever the number of
+/// threads. On a triangle mesh, triangles take about 7 colours and hinges about 12.
+class Colouring {
+ public:
+  Colouring() = default;
+  /// Element s touches the vertices ids[ptr[s] .. ptr[s+1]).
+  Colouring(std::span<const int> ptr, std::span<const int> ids, int num_vertices);
+  /// Elements of a fixed stencil size k: element s touches ids[k s .. k s + k).
+  static Colouring uniform(std::span<const int> ids, int stencil, int num_vertices);
+  int num_elements() const { return static_cast<int>(order_.size()); }
+  int num_colours() const { return static_cast<int>(ptr_.size()) - 1; }
+  /// The elements of colour c, ascending.
+  std::span<const int> colour(int c) const {
+    return {order_.data() + ptr_[c], static_cast<size_t>(ptr_[c + 1] - ptr_[c])};
+  }
+
+ private:
+  std::vector<int> order_, ptr_{0};
+};
+
+/// How element Hessians reach the matrix.
+///  - `direct` (default): every element adds its blocks straight into the matrix, colour by
+///    colour (no element storage: the assembly needs no memory beyond the matrix).
+///  - `stored`: every element writes a private slot, and a gather sums the slots per matrix
+///    block (fully parallel, but 4.75 kB per cloth vertex of element storage).
+/// Both are bitwise deterministic across thread counts; they agree to round-off.
+enum class AssemblyMode { direct, stored };
+
+class AssemblyPlan;
+
+namespace detail {
+/// The immutable part of a finalised plan, shared by the plan and its buffers (so a buffer
+/// stays valid when the plan that made it moves).
+struct PlanMaps {
+  int num_blocks = 0;                 // of the pattern
+  std::vector<int> stencil;           // per group
+  std::vector<size_t> first_block;    // per group: index of its first element block
+  std::vector<int> destination;       // per element block: index of the matrix block
+  std::vector<Colouring> colouring;   // per group
+  // Stored mode: for matrix block m, element blocks src[src_ptr[m] .. src_ptr[m+1]).
+  std::vector<size_t> src_ptr, src;
+};
+}  // namespace detail
+
+/// Where models write their local element Hessians during one assembly:
+///
+///     buf.start(A);                                 // A has the plan's pattern
+///     buf.for_each(group, [&](int e) { buf.set(group, e, local(e)); });
+///     buf.finish();                                 // A = sum of element matrices
+///
+/// Element e of group g has a k x k array of 3x3 blocks (k = its stencil size), block-major,
+/// row-major blocks. Writes must go through `for_each` (colour by colour in direct mode):
+/// two elements sharing a vertex are never written at the same time. An element that is not
+/// written contributes nothing in direct mode and keeps its last value in stored mode
+/// (`zero_group` clears a group for models that skip elements).
 class ElementBuffer {
  public:
-  /// Writable 3x3 block (a, b) of element e in group g.
-  Eigen::Map<Block3> block(int group, int e, int a, int b);
+  static constexpr int max_stencil = 6;
+  /// The local matrix of one element. In direct mode it lives on the stack and is added to
+  /// the matrix when the slot goes out of scope; in stored mode it is the element's storage.
+  class Slot {
+   public:
+    Slot(const Slot&) = delete;
+    Slot& operator=(const Slot&) = delete;
+    ~Slot();
+    /// Block (a, b): 9 doubles, row-major.
+    Eigen::Map<Block3> block(int a, int b) { return Eigen::Map<Block3>(data_ + 9 * (a * k_ + b)); }
+    /// The k*k blocks, contiguous and block-major.
+    double* data() { return data_; }
+    int stencil_size() const { return k_; }
+
+   private:
+    friend class ElementBuffer;
+    Slot(ElementBuffer& buf, int group, int e);
+    ElementBuffer& buf_;
+    size_t first_;  // index of the element's first block
+    int k_;
+    double* data_;
+    std::array<double, 9 * max_stencil * max_stencil> local_;  // direct mode only
+  };
+
+  ElementBuffer() = default;
+  AssemblyMode mode() const { return mode_; }
+  /// Begin an assembly into `out`, which must have the plan's pattern (direct mode zeroes it).
+  void start(BlockCsr& out);
+  /// End it: stored mode sums the element slots into the matrix given to `start`.
+  void finish();
+
+  Slot slot(int group, int e) { return Slot(*this, group, e); }
   /// Copy a dense (3k x 3k) local matrix into element e of group g.
   template <class Derived>
   void set(int group, int e, const Eigen::MatrixBase<Derived>& local) {
-    const int k = stencil_[group];
-    for (int a = 0; a < k; ++a)
-      for (int b = 0; b < k; ++b) block(group, e, a, b) = local.template block<3, 3>(3 * a, 3 * b);
+    Slot s = slot(group, e);
+    for (int a = 0; a < s.k_; ++a)
+      for (int b = 0; b < s.k_; ++b) s.block(a, b) = local.template block<3, 3>(3 * a, 3 * b);
   }
-  /// Zero every local matrix of group g (for models that add, rather than set, terms).
+  /// Stored mode: writable block (a, b) of element e in group g (direct mode has no storage).
+  Eigen::Map<Block3> block(int group, int e, int a, int b);
+  /// Zero every local matrix of group g (stored mode; nothing to do in direct mode).
   void zero_group(int group);
-  int stencil_size(int group) const { return stencil_[group]; }
+  int stencil_size(int group) const { return maps_->stencil[group]; }
+  /// The plan's colouring of group g (elements sharing no vertex within a colour).
+  const Colouring& colouring(int group) const { return maps_->colouring[group]; }
+
+  /// Call f(e) for every element of `c` (the elements one writer unit each): in parallel,
+  /// and in direct mode one colour at a time, so that no two concurrent writers share a vertex.
+  template <class F>
+  void for_each(const Colouring& c, F&& f) const {
+    if (mode_ == AssemblyMode::stored) {
+      parallel_range(c.num_elements(), [&f](int e) { f(e); });
+      return;
+    }
+    for (int k = 0; k < c.num_colours(); ++k) {
+      const std::span<const int> el = c.colour(k);
+      parallel_range(static_cast<int>(el.size()), [&f, el](int i) { f(el[i]); });
+    }
+  }
+  /// Every element of group g, each writing its own slot.
+  template <class F>
+  void for_each(int group, F&& f) const {
+    for_each(colouring(group), std::forward<F>(f));
+  }
 
  private:
   friend class AssemblyPlan;
-  std::vector<int> stencil_;        // per group
-  std::vector<size_t> offset_;      // per group: first double
-  std::vector<double> data_;
+  void gather_into(BlockCsr& out) const;
+  /// g(i) for i in [0, n): in parallel when worth a team (small ranges, or a caller already
+  /// inside a parallel region, run inline and never touch the OpenMP runtime).
+  template <class G>
+  static void parallel_range(int n, G&& g) {
+#ifdef _OPENMP
+    if (n >= 256 && omp_get_max_threads() > 1 && !omp_in_parallel()) {
+#pragma omp parallel for schedule(static)
+      for (int i = 0; i < n; ++i) g(i);
+      return;
+    }
+#endif
+    for (int i = 0; i < n; ++i) g(i);
+  }
+  AssemblyMode mode_ = AssemblyMode::direct;
+  std::shared_ptr<const detail::PlanMaps> maps_;
+  BlockCsr* target_ = nullptr;
+  std::vector<double> data_;  // stored mode: every element block
 };
 
 /// The map from element blocks to matrix blocks, built once per topology.
@@ -94,16 +224,19 @@ class AssemblyPlan {
   /// Register `vertex_ids.size() / stencil_size` elements; returns the group id that the
   /// model passes back to `ElementBuffer`. Only before `finalize`.
   int add_group(int stencil_size, std::span<const int> vertex_ids);
-  /// Build the pattern of a #vertices x #vertices block matrix and the gather lists.
+  /// Build the pattern of a #vertices x #vertices block matrix, the element-to-matrix map
+  /// and a colouring of each group.
   void finalize(int num_vertices);
   bool finalized() const { return finalized_; }
+  int num_vertices() const { return pattern_.block_rows(); }
 
   /// A matrix with the plan's pattern (values zero).
   const BlockCsr& pattern() const { return pattern_; }
-  /// A buffer sized for every registered element (allocate once, reuse).
-  ElementBuffer make_buffer() const;
-  /// out = sum of all element blocks (out must have the plan's pattern). Parallel over
-  /// matrix blocks; every matrix block sums its contributions in a fixed order.
+  /// A buffer for this plan (allocate once, reuse). Stored mode allocates every element's
+  /// slot and the gather lists on first use.
+  ElementBuffer make_buffer(AssemblyMode mode = AssemblyMode::direct);
+  /// Stored mode: out = sum of all element blocks (out must have the plan's pattern).
+  /// Parallel over matrix blocks; every matrix block sums its contributions in a fixed order.
   void gather(const ElementBuffer& buffer, BlockCsr& out) const;
   int num_groups() const { return static_cast<int>(stencil_.size()); }
 
@@ -112,9 +245,7 @@ class AssemblyPlan {
   std::vector<int> stencil_;
   std::vector<std::vector<int>> ids_;
   BlockCsr pattern_;
-  // For matrix block m: contributions src_[src_ptr_[m] .. src_ptr_[m+1]) are block indices
-  // (in units of 9 doubles) into the element buffer's data.
-  std::vector<size_t> src_ptr_, src_;
+  std::shared_ptr<detail::PlanMaps> maps_;
 };
 
 }  // namespace weft

@@ -66,6 +66,7 @@ struct NewtonReport {
   double final_residual = 0;
   double tolerance = 0;         ///< the residual threshold that was used
   std::string stop_reason;      ///< which criterion stopped the iteration
+  int round_off_steps = 0;      ///< full steps taken on the derivative test, E_inc's decrease below round-off
   std::string method;           ///< the solver: merit, globalisation, line search, Hessian choice
   std::vector<NewtonIteration> history;
   std::string message;

@@ -330,7 +330,21 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
         problem.gradient(trial, ft);
         return std::pair<double, double>(value, ft.dot(dir));
       };
-      switch (prm.line_search) {
+      // Below round-off (spec 02 §6.6, mitigation 2): when the full step's predicted decrease
+      // is too small for E_inc to resolve, value comparisons are noise; accept the full step
+      // on the derivative test of approximate Wolfe instead (the slope along the direction
+      // must shrink in magnitude and stay a descent-side slope).
+      const double noise = 1e-12 * (std::abs(e) + problem.merit_scale());
+      bool decided = false;
+      if (prm.line_search != LineSearchKind::full_step && std::abs(slope) <= noise) {
+        const auto [value, slope1] = phi_slope(1.0);
+        if (std::isfinite(value) && std::abs(slope1) <= 0.9 * std::abs(slope)) {
+          ls = {true, 1.0, value, 1};
+          decided = true;
+          ++nr.round_off_steps;
+        }
+      }
+      if (!decided) switch (prm.line_search) {
         case LineSearchKind::full_step: ls = {true, 1.0, phi(1.0), 1}; break;
         case LineSearchKind::backtracking: ls = backtracking(phi, e, slope, prm.search); break;
         case LineSearchKind::more_thuente: ls = more_thuente(phi_slope, e, slope, prm.search); break;

@@ -65,9 +65,10 @@ class StepSystem final : public NewtonProblem {
   void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
     ScopedTimer t(times_, Stage::hessian);
     trial_.x = x0_ + d;
+    p_.buffer.start(p_.matrix);
     energy_.add_hessian(trial_, p_.buffer, mode);
     contact_.add_hessian(trial_, p_.buffer, mode);
-    p_.plan.gather(p_.buffer, p_.matrix);
+    p_.buffer.finish();
     p_.matrix.scale(dt2_);
     p_.matrix.add_diagonal((1.0 + shift) * mt_);
     p_.matrix.filter_rows(p_.fixed, -1.0);  // fixed rows decoupled, diagonal tr(K_ii)/3

@@ -105,8 +105,8 @@ void autodiff_evaluate(const HingeBending<AngleFunction>& model, const State& s,
   };
   if (g) {
     for (int i = 0; i < nh; ++i) kernel(i);  // the gradient scatter is serial
-  } else {
-    detail::for_each_element(nh, kernel);
+  } else if (buf) {
+    buf->for_each(model.hinge_group(), kernel);  // colour by colour in direct mode
   }
   if (buf && model.triangle_group() >= 0) buf->zero_group(model.triangle_group());
 }

@@ -356,6 +356,16 @@ template <class AngleFunction>
 void HingeBending<AngleFunction>::declare(AssemblyPlan& plan) {
   group_ = plan.add_group(4, ids_);
   tri_group_ = lone_.empty() ? -1 : plan.add_group(3, lone_ids_);
+  // Pass C's writer is the triangle: it writes its lone slot and the slots of the hinges it
+  // owns, so it touches its own vertices and the far wing of each owned hinge.
+  std::vector<int> ptr{0}, ids;
+  for (const Face& F : faces_) {
+    ids.insert(ids.end(), F.v.begin(), F.v.end());
+    for (int j = 0; j < 3; ++j)
+      if (F.owns[j]) ids.insert(ids.end(), hinges_[F.hinge[j]].v.begin(), hinges_[F.hinge[j]].v.end());
+    ptr.push_back(static_cast<int>(ids.size()));
+  }
+  tri_writers_ = Colouring(ptr, ids, num_vertices_);
 }
 
 template <class AngleFunction>
@@ -431,7 +441,9 @@ void HingeBending<AngleFunction>::evaluate_refactored(const State& s, Eigen::Vec
   // Pass C: per triangle H^tri, the gradient (d_i / h_i) n and the owned hinges' psi''
   // outer products. Every slot has one writer (the owner triangle), so no locks.
   const int hg = group_, tg = tri_group_;
-  bending::detail::for_each_element(nf, [&](int a) {
+  // With a buffer, triangles that write to a common vertex (their own, or the far wing of a
+  // hinge they own) never run at the same time in direct mode (tri_writers_ colouring).
+  auto pass_c = [&](int a) {
     const Face& F = faces_[a];
     const bending::TriangleFrame& t = frame_[a];
     std::array<double, 3> gamma;
@@ -450,13 +462,15 @@ void HingeBending<AngleFunction>::evaluate_refactored(const State& s, Eigen::Vec
       else
         B += terms.upper[v].transpose();
     };
-    if (F.lone >= 0)
+    if (F.lone >= 0) {
+      ElementBuffer::Slot lone = buf->slot(tg, F.lone);
       for (int u = 0; u < 3; ++u)
         for (int v = 0; v < 3; ++v) {
           Block3 B = Block3::Zero();
           add_htri(B, u, v);
-          buf->block(tg, F.lone, u, v) = B;
+          lone.block(u, v) = B;
         }
+    }
     for (int j = 0; j < 3; ++j) {
       if (!F.owns[j]) continue;
       const int h = F.hinge[j];
@@ -464,7 +478,8 @@ void HingeBending<AngleFunction>::evaluate_refactored(const State& s, Eigen::Vec
       const double c = ddpsi_[h];
       const bool primary = h == F.slot_hinge;
       // The slot's 4x4 blocks are contiguous, block-major (ElementBuffer's layout).
-      double* slot = buf->block(hg, h, 0, 0).data();
+      ElementBuffer::Slot hinge_slot = buf->slot(hg, h);
+      double* slot = hinge_slot.data();
       auto put = [slot](int p, int q) { return Eigen::Map<Block3>(slot + 9 * (4 * p + q)); };
       // Slot vertex p is local vertex (j + p) mod 3 for p < 3, the other wing for p = 3.
       for (int p = 0; p < 4; ++p) {
@@ -483,7 +498,11 @@ void HingeBending<AngleFunction>::evaluate_refactored(const State& s, Eigen::Vec
         }
       }
     }
-  });
+  };
+  if (buf)
+    buf->for_each(tri_writers_, pass_c);
+  else
+    bending::detail::for_each_element(nf, pass_c);
   if (!g) return;
   // Gradient: sum the corner terms per vertex, in a fixed order.
   Eigen::VectorXd& gv = *g;
@@ -513,7 +532,7 @@ void HingeBending<AngleFunction>::evaluate_per_hinge(const State& s, Eigen::Vect
   }
   // Exceptions must not leave an OpenMP region: record that a hinge is degenerate, throw after.
   std::atomic<bool> bad{false};
-  bending::detail::for_each_element(nh, [&](int i) {
+  buf->for_each(group_, [&](int i) {
     const auto f = frames(s, i);
     const auto a = bending::hinge_angle(f);
     if (check(f, a, i) != Defect::none) {

@@ -307,6 +307,7 @@ class HingeBending {
   std::vector<int> corner_ptr_, corner_;  // per vertex: (active face * 3 + local vertex) incidences
   int group_ = -1, tri_group_ = -1;
   int num_vertices_ = 0;
+  Colouring tri_writers_;  // pass C of the refactored path, by the vertices each triangle writes
   // Scratch of the refactored passes (sized in the constructor; never reallocated).
   mutable std::vector<bending::TriangleFrame> frame_;  // pass A, per active face
   mutable std::vector<double> dpsi_, ddpsi_;           // pass B, per hinge

@@ -318,9 +318,7 @@ template <class Material>
 void StvkMembrane<Material>::add_hessian(const State& s, ElementBuffer& buf, HessianMode mode) const {
   WEFT_ASSERT(group_ >= 0, "{}", "StvkMembrane::add_hessian before declare(): call declare(plan) first");
   const bool projected = mode == HessianMode::projected;
-  const int nf = num_elements();
-#pragma omp parallel for schedule(static)
-  for (int f = 0; f < nf; ++f) buf.set(group_, f, membrane::element_hessian(corners(s, f), elements_[f], projected));
+  buf.for_each(group_, [&](int f) { buf.set(group_, f, membrane::element_hessian(corners(s, f), elements_[f], projected)); });
 }
 
 template <class Material>

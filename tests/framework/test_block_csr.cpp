@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <random>
 #ifdef _OPENMP
 #include <omp.h>
@@ -51,7 +52,7 @@ struct Fixture {
 TEST_SUITE("framework") {
   TEST_CASE("BlockCsr: gathered assembly equals a dense reference") {
     Fixture fx;
-    ElementBuffer buf = fx.plan.make_buffer();
+    ElementBuffer buf = fx.plan.make_buffer(AssemblyMode::stored);
     const Eigen::MatrixXd dense = fx.fill(buf, 11);
     BlockCsr A = fx.plan.pattern();
     fx.plan.gather(buf, A);
@@ -67,7 +68,7 @@ TEST_SUITE("framework") {
 
   TEST_CASE("BlockCsr: the pattern is reused across evaluations") {
     Fixture fx;
-    ElementBuffer buf = fx.plan.make_buffer();
+    ElementBuffer buf = fx.plan.make_buffer(AssemblyMode::stored);
     BlockCsr A = fx.plan.pattern();
     const auto col_before = A.col();
     fx.fill(buf, 1);
@@ -80,7 +81,7 @@ TEST_SUITE("framework") {
 
   TEST_CASE("BlockCsr: parallel assembly is bitwise deterministic across thread counts") {
     Fixture fx;
-    ElementBuffer buf = fx.plan.make_buffer();
+    ElementBuffer buf = fx.plan.make_buffer(AssemblyMode::stored);
     fx.fill(buf, 3);
     BlockCsr A = fx.plan.pattern(), B = fx.plan.pattern();
 #ifdef _OPENMP
@@ -100,7 +101,7 @@ TEST_SUITE("framework") {
 
   TEST_CASE("BlockCsr: multiply / diagonal / scale and Dirichlet filter") {
     Fixture fx;
-    ElementBuffer buf = fx.plan.make_buffer();
+    ElementBuffer buf = fx.plan.make_buffer(AssemblyMode::stored);
     Eigen::MatrixXd dense = fx.fill(buf, 4);
     BlockCsr A = fx.plan.pattern();
     fx.plan.gather(buf, A);
@@ -140,7 +141,7 @@ TEST_SUITE("framework") {
 
   TEST_CASE("BlockCsr: symmetric element matrices give a symmetric matrix - lower-only export") {
     Fixture fx;
-    ElementBuffer buf = fx.plan.make_buffer();
+    ElementBuffer buf = fx.plan.make_buffer(AssemblyMode::stored);
     std::mt19937 rng(8);
     std::uniform_real_distribution<double> u(-1, 1);
     for (int e = 0; e < fx.mesh.num_faces(); ++e) {
@@ -156,5 +157,77 @@ TEST_SUITE("framework") {
     const Eigen::MatrixXd full = A.to_dense();
     CHECK((Eigen::MatrixXd(lower.triangularView<Eigen::Lower>()) - lower).norm() == 0.0);
     CHECK((Eigen::MatrixXd(lower.selfadjointView<Eigen::Lower>()) - full).norm() <= 1e-14 * full.norm());
+  }
+
+  TEST_CASE("Colouring: every element once and no shared vertex within a colour") {
+    Fixture fx;
+    for (auto [ids, k] : {std::pair{&fx.tri, 3}, std::pair{&fx.hinge, 4}}) {
+      const Colouring c = Colouring::uniform(*ids, k, fx.mesh.num_vertices());
+      const int ne = static_cast<int>(ids->size()) / k;
+      REQUIRE(c.num_elements() == ne);
+      CHECK(c.num_colours() >= 2);   // adjacent elements exist, so one colour cannot do
+      CHECK(c.num_colours() <= 16);  // greedy stays near the maximum vertex degree
+      std::vector<int> seen(ne, 0);
+      for (int col = 0; col < c.num_colours(); ++col) {
+        std::vector<int> owner(fx.mesh.num_vertices(), -1);
+        for (int e : c.colour(col)) {
+          ++seen[e];
+          for (int a = 0; a < k; ++a) {
+            const int v = (*ids)[e * k + a];
+            CHECK(owner[v] == -1);
+            owner[v] = e;
+          }
+        }
+      }
+      CHECK(std::all_of(seen.begin(), seen.end(), [](int n) { return n == 1; }));
+    }
+    // More than 64 colours: 70 elements that all share vertex 0.
+    std::vector<int> fan;
+    for (int e = 0; e < 70; ++e) fan.insert(fan.end(), {0, e + 1});
+    const Colouring wide = Colouring::uniform(fan, 2, 71);
+    CHECK(wide.num_colours() == 70);
+  }
+
+  TEST_CASE("BlockCsr: direct assembly equals the stored one and is deterministic across threads") {
+    Fixture fx;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::vector<Eigen::MatrixXd> tri(fx.tri.size() / 3), hin(fx.hinge.size() / 4);
+    for (auto& L : tri) L = Eigen::MatrixXd::NullaryExpr(9, 9, [&] { return u(rng); });
+    for (auto& L : hin) L = Eigen::MatrixXd::NullaryExpr(12, 12, [&] { return u(rng); });
+    auto assemble = [&](AssemblyMode mode, int threads) {
+#ifdef _OPENMP
+      const int saved = omp_get_max_threads();
+      omp_set_num_threads(threads);
+#endif
+      ElementBuffer buf = fx.plan.make_buffer(mode);
+      BlockCsr A = fx.plan.pattern();
+      A.values().assign(A.values().size(), 42.0);  // start() must overwrite, not accumulate
+      buf.start(A);
+      buf.for_each(fx.g3, [&](int e) { buf.set(fx.g3, e, tri[e]); });
+      buf.for_each(fx.g4, [&](int e) { buf.set(fx.g4, e, hin[e]); });
+      buf.finish();
+#ifdef _OPENMP
+      omp_set_num_threads(saved);
+#else
+      (void)threads;
+#endif
+      return A;
+    };
+    const BlockCsr S = assemble(AssemblyMode::stored, 1);
+    const BlockCsr D1 = assemble(AssemblyMode::direct, 1), D2 = assemble(AssemblyMode::direct, 2);
+    const Eigen::MatrixXd ds = S.to_dense();
+    REQUIRE(ds.norm() > 0);
+    CHECK((D1.to_dense() - ds).norm() <= 1e-14 * ds.norm());
+    CHECK(std::equal(D1.values().begin(), D1.values().end(), D2.values().begin()));
+    // A direct slot adds: two writes to one element sum.
+    ElementBuffer buf = fx.plan.make_buffer();
+    BlockCsr A = fx.plan.pattern();
+    buf.start(A);
+    buf.set(fx.g3, 0, tri[0]);
+    buf.set(fx.g3, 0, tri[0]);
+    buf.finish();
+    const int v0 = fx.tri[0];
+    CHECK((Eigen::Matrix3d(A.block(A.diagonal(v0))) - 2 * tri[0].block<3, 3>(0, 0)).norm() <= 1e-15 * tri[0].norm() + 1e-300);
   }
 }

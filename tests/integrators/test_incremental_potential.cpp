@@ -244,7 +244,7 @@ TEST_SUITE("integrators") {
     State& s = sim.state();
     for (int i = 0; i < s.num_vertices(); ++i) s.velocity(i) += Eigen::Vector3d(0, 0, 0.5 * std::sin(1.1 * i));  // a real solve
     const StepReport r = sim.step();
-    REQUIRE(r.ok());
+    REQUIRE_MESSAGE(r.ok(), r.message);
     // The Newton decrement lambda^2 = f^T K^-1 f (= -slope of the full Newton step) is the
     // affine-invariant measure of the distance to the solution; quadratic convergence
     // doubles its exponent per iteration.

@@ -39,9 +39,60 @@ class Quartic final : public NewtonProblem {
  private:
   double k_ = 0;
 };
+// E(d) = C + (d - 1)^4 / 4 + (d - 1)^2 / 2 with a large constant C: near the minimum the
+// decrease of E is far below the round-off of E itself (spec 02 §6.6).
+class OffsetQuartic final : public NewtonProblem {
+ public:
+  explicit OffsetQuartic(double c) : c_(c) {}
+  double potential(const Eigen::VectorXd& d) override {
+    const double u = d[0] - 1;
+    return c_ + 0.25 * u * u * u * u + 0.5 * u * u;
+  }
+  void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) override {
+    const double u = d[0] - 1;
+    f = Eigen::VectorXd::Constant(1, u * u * u + u);
+  }
+  double norm(const Eigen::VectorXd& f) const override { return std::abs(f[0]); }
+  void assemble(const Eigen::VectorXd& d, HessianMode, double shift) override { k_ = 3 * (d[0] - 1) * (d[0] - 1) + 1 + shift; }
+  Status factorize() override { return Status::success; }
+  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
+  LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
+    p = rhs / k_;
+    return {};
+  }
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { y = k_ * x; }
+  void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override { out = f; }
+  double merit_scale() const override { return 0; }
+
+ private:
+  double c_, k_ = 1;
+};
 }  // namespace
 
 TEST_SUITE("integrators") {
+  TEST_CASE("newton: below the round-off of E the full step is taken on the derivative test") {
+    for (auto kind : {LineSearchKind::backtracking, LineSearchKind::more_thuente, LineSearchKind::hager_zhang}) {
+      CAPTURE(static_cast<int>(kind));
+      OffsetQuartic q(1e12);  // one ulp of E is 1.2e-4: the last Newton decreases are invisible
+      REQUIRE(q.potential(Eigen::VectorXd::Constant(1, 1.01)) == q.potential(Eigen::VectorXd::Constant(1, 1.0)));
+      NewtonParams prm;
+      prm.line_search = kind;
+      prm.relative_tolerance = 1e-14;
+      prm.length_tolerance = 0;
+      Eigen::VectorXd x = Eigen::VectorXd::Constant(1, 3.0);
+      double hint = 0;
+      NewtonReport nr;
+      LinearReport lr;
+      StageTimes times;
+      const NewtonFailure f = minimize(q, x, 0.0, prm, hint, nr, lr, times);
+      REQUIRE_MESSAGE(f.status == Status::success, f.message);
+      CHECK(nr.final_residual <= nr.tolerance);
+      CHECK(std::abs(x[0] - 1) <= 1e-13);
+      CHECK(nr.round_off_steps >= 1);  // the rule was exercised
+      CHECK(nr.iterations <= 10);      // and Newton kept its quadratic pace
+    }
+  }
+
   TEST_CASE("1D example: the two merits disagree on the descent directions at x = 0") {
     // Direction +1 descends W but no step in (0, 1] reduces |W'|.
     CHECK(dW(0) * 1.0 < 0);

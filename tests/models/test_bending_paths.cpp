@@ -66,12 +66,13 @@ struct Paths {
   }
   enum Which { refactored, per_hinge, autodiff };
   BlockCsr hessian(const State& s, Which w, HessianMode mode = HessianMode::exact) {
+    BlockCsr H = plan.pattern();
+    buf.start(H);
     if (w == autodiff)
       bending::autodiff_evaluate(model, s, nullptr, &buf);
     else
       model.evaluate(s, nullptr, &buf, mode, w == refactored ? BendingAssembly::refactored : BendingAssembly::per_hinge);
-    BlockCsr H = plan.pattern();
-    plan.gather(buf, H);
+    buf.finish();
     return H;
   }
   Eigen::VectorXd gradient(const State& s, Which w) {

@@ -223,7 +223,7 @@ TEST_SUITE("models") {
     AssemblyPlan plan;
     p.model.declare(plan);
     plan.finalize(p.state.num_vertices());
-    ElementBuffer buf = plan.make_buffer();
+    ElementBuffer buf = plan.make_buffer(AssemblyMode::stored);  // per-element slots, read back below
     p.model.add_hessian(p.state, buf, HessianMode::projected);
     for (int i = 0; i < p.model.num_hinges(); ++i) {
       CAPTURE(i);
@@ -279,7 +279,7 @@ TEST_SUITE("models") {
       HingeBending<Angle> m = model;
       m.declare(plan);
       plan.finalize(s.num_vertices());
-      ElementBuffer buf = plan.make_buffer();
+      ElementBuffer buf = plan.make_buffer(AssemblyMode::stored);
       if (c.admissible) {
         CHECK(std::isfinite(W));
         m.add_gradient(s, g);

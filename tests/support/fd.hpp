@@ -16,6 +16,7 @@
 
 #include "framework/block_csr.hpp"
 #include "framework/concepts.hpp"
+#include "framework/error.hpp"
 #include "framework/state.hpp"
 #include "framework/triangle_mesh.hpp"
 
@@ -98,17 +99,33 @@ Eigen::MatrixXd fd_hessian(const Model& m, const State& s, double h) {
       s.x, h);
 }
 
-/// The model's Hessian assembled through an `AssemblyPlan` (declare, finalize, add_hessian,
-/// gather into a copy of the plan's pattern), as a block-sparse matrix.
+/// The model's Hessian assembled through an `AssemblyPlan` (declare, finalize, add_hessian
+/// into a copy of the plan's pattern), as a block-sparse matrix. Assembled both ways (direct
+/// and stored); the two must agree to round-off, and the direct one is returned.
 template <class Model>
 BlockCsr assembled_hessian(Model& m, const State& s, HessianMode mode) {
   AssemblyPlan plan;
   m.declare(plan);
   plan.finalize(s.num_vertices());
-  ElementBuffer buf = plan.make_buffer();
-  m.add_hessian(s, buf, mode);
-  BlockCsr H = plan.pattern();
-  plan.gather(buf, H);
+  BlockCsr H = plan.pattern(), Hs = plan.pattern();
+  for (AssemblyMode am : {AssemblyMode::direct, AssemblyMode::stored}) {
+    ElementBuffer buf = plan.make_buffer(am);
+    BlockCsr& out = am == AssemblyMode::direct ? H : Hs;
+    buf.start(out);
+    m.add_hessian(s, buf, mode);
+    buf.finish();
+  }
+  double diff = 0, scale = 0;
+  bool same_finiteness = true;
+  for (size_t k = 0; k < H.values().size(); ++k) {
+    const double a = H.values()[k], b = Hs.values()[k];
+    same_finiteness &= std::isfinite(a) == std::isfinite(b);
+    if (std::isfinite(a) && std::isfinite(b)) {
+      diff = std::max(diff, std::abs(a - b));
+      scale = std::max(scale, std::abs(b));
+    }
+  }
+  WEFT_ASSERT(same_finiteness && diff <= 1e-13 * scale, "direct and stored assembly differ by {:.3e} (scale {:.3e})", diff, scale);
   return H;
 }
 

@@ -90,12 +90,13 @@ inline ClothSystem cloth_system(int m, Tessellation t = Tessellation::regular, P
   bending.declare(plan);
   plan.finalize(n);
   ElementBuffer buf = plan.make_buffer();
-  membrane.add_hessian(s, buf, HessianMode::projected);
-  bending.add_hessian(s, buf, HessianMode::projected);
   ClothSystem sys;
   sys.m = m;
   sys.A = plan.pattern();
-  plan.gather(buf, sys.A);
+  buf.start(sys.A);
+  membrane.add_hessian(s, buf, HessianMode::projected);
+  bending.add_hessian(s, buf, HessianMode::projected);
+  buf.finish();
   sys.A.scale(dt * dt);
   Eigen::VectorXd mass3(3 * n);
   for (int i = 0; i < n; ++i) mass3.segment<3>(3 * i).setConstant(s.mass[i]);
