@@ -538,7 +538,8 @@ int bench_linear(const BenchLinearOptions& opt) {
   w(fmt::format(
       "Setup: 1 m x 1 m cotton-like sheet (0.15 kg/m^2, Y = 20 MPa, nu = 0.3, h = 0.3 mm), StVK isotropic membrane + theta hinge "
       "bending, gravity, dt = 2 ms. One Baraff-Witkin linearly implicit step per time step: A = M + dt^2 H (PSD-projected element "
-      "Hessians) [+ dt^2 K_springs], b = dt M v - dt^2 (grad V - f_gravity) [+ dt^2 f_springs]; unknown d = dt v_new; zero initial "
+      "Hessians) [+ dt^2 K_springs], pinned rows and columns decoupled (diagonal tr(A_ii)/3, as in the simulator), "
+      "b = dt M v - dt^2 (grad V - f_gravity) [+ dt^2 f_springs]; unknown d = dt v_new; zero initial "
       "guess; tolerance {:g} on the relative M^-1-norm residual (M = the solver's preconditioner); iteration limit {}. Every solver "
       "solves the same system each step; the simulation advances with the reference solver (`{}`), which also gives x* for the "
       "energy error ||x - x*||_A / ||x*||_A. Steps: the thesis's frames (10 / 15 / 25) at 30 fps ({} steps per frame; the thesis "

@@ -227,7 +227,7 @@ std::size_t LinearBenchSimulation::matrix_bytes() const {
 }
 
 void LinearBenchSimulation::rebuild_union_pattern() {
-  const BlockCsr& P = models_->plan.pattern();
+  const BlockCsr& P = models_->plan.structure();
   std::vector<std::vector<int>> cols(n_);
   for (int i = 0; i < n_; ++i) cols[i].assign(P.col().begin() + P.row_ptr()[i], P.col().begin() + P.row_ptr()[i + 1]);
   for (const auto& [i, j] : springs_) cols[i].push_back(j), cols[j].push_back(i);
@@ -291,7 +291,7 @@ StepCounts LinearBenchSimulation::build_system() {
   models_->membrane.add_gradient(state_, g_);
   models_->bending.add_gradient(state_, g_);
   // Element Hessians go straight into the block matrix (direct assembly: no element storage).
-  if (union_pattern_ && H_.num_blocks() != models_->plan.pattern().num_blocks()) H_ = models_->plan.pattern();
+  if (union_pattern_ && H_.num_blocks() != models_->plan.structure().num_blocks()) H_ = models_->plan.pattern();
   BlockCsr& target = union_pattern_ ? H_ : A_;
   models_->buf.start(target);
   models_->membrane.add_hessian(state_, models_->buf, HessianMode::projected);
@@ -324,6 +324,9 @@ StepCounts LinearBenchSimulation::build_system() {
     }
   }
   A_.add_diagonal(mass3_);
+  // Pinned rows decoupled as the simulator's step system does (diagonal tr(A_ii)/3): every
+  // solver sees the same matrix, and PPCG needs no prefiltered copy for the pins.
+  A_.filter_rows(pinned_, -1.0);
   for (int i = 0; i < n_; ++i)
     b_.segment<3>(3 * i) = dt * state_.mass[i] * v.segment<3>(3 * i) - dt * dt * (g_.segment<3>(3 * i) - state_.mass[i] * gravity);
   c.assembly_seconds = seconds_since(t0);

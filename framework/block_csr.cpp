@@ -229,6 +229,7 @@ void AssemblyPlan::finalize(int num_vertices) {
         }
   }
   pattern_ = BlockCsr(cols);
+  pattern_.values() = {};  // the structure only (pattern() hands out matrices)
   cols = {};
 
   auto maps = std::make_shared<detail::PlanMaps>();

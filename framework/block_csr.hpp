@@ -230,8 +230,15 @@ class AssemblyPlan {
   bool finalized() const { return finalized_; }
   int num_vertices() const { return pattern_.block_rows(); }
 
-  /// A matrix with the plan's pattern (values zero).
-  const BlockCsr& pattern() const { return pattern_; }
+  /// A new matrix with the plan's pattern, values zero.
+  BlockCsr pattern() const {
+    BlockCsr m = pattern_;
+    m.values().assign(9 * static_cast<size_t>(m.num_blocks()), 0.0);
+    return m;
+  }
+  /// The pattern alone (row pointers and columns; `values()` is empty): the plan keeps no
+  /// matrix-sized array of its own.
+  const BlockCsr& structure() const { return pattern_; }
   /// A buffer for this plan (allocate once, reuse). Stored mode allocates every element's
   /// slot and the gather lists on first use.
   ElementBuffer make_buffer(AssemblyMode mode = AssemblyMode::direct);

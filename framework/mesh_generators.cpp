@@ -46,18 +46,37 @@ MeshData grid(const Eigen::Vector2d& size, std::array<int, 2> res, Tessellation 
 
   std::uniform_real_distribution<double> jitter(-0.3, 0.3);
   std::vector<int> remap(used.size(), -1);
-  std::vector<Eigen::Vector3d> verts;
+  std::vector<Eigen::Vector3d> verts, offset;
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
       const int k = id(i, j);
       // Draw jitter for every grid vertex so the sequence does not depend on the shape.
       const double du = jitter(rng), dv = jitter(rng);
       if (!used[k]) continue;
-      Eigen::Vector3d p(-0.5 * size[0] + i * hx, -0.5 * size[1] + j * hy, 0.0);
-      if (t == Tessellation::irregular && !boundary[k]) p += Eigen::Vector3d(du * hx, dv * hy, 0.0);
       remap[k] = static_cast<int>(verts.size());
-      verts.push_back(p);
+      verts.emplace_back(-0.5 * size[0] + i * hx, -0.5 * size[1] + j * hy, 0.0);
+      offset.push_back(t == Tessellation::irregular && !boundary[k] ? Eigen::Vector3d(du * hx, dv * hy, 0.0)
+                                                                    : Eigen::Vector3d::Zero());
     }
+  // Jitter of both ends of an edge can fold a triangle over (or nearly): halve the offsets of
+  // the vertices of every triangle below a tenth of the grid triangle's area until none is left.
+  const double min_area = 0.1 * 0.5 * hx * hy;
+  for (int pass = 0; pass < 30; ++pass) {
+    std::vector<char> shrink(verts.size(), 0);
+    bool any = false;
+    for (const auto& f : faces) {
+      Eigen::Vector3d q[3];
+      for (int c = 0; c < 3; ++c) q[c] = verts[remap[f[c]]] + offset[remap[f[c]]];
+      const Eigen::Vector3d e1 = q[1] - q[0], e2 = q[2] - q[0];
+      const double area = 0.5 * (e1.x() * e2.y() - e1.y() * e2.x());
+      if (area < min_area)
+        for (int c = 0; c < 3; ++c) shrink[remap[f[c]]] = any = true;
+    }
+    if (!any) break;
+    for (size_t k = 0; k < verts.size(); ++k)
+      if (shrink[k]) offset[k] *= 0.5;
+  }
+  for (size_t k = 0; k < verts.size(); ++k) verts[k] += offset[k];
   MeshData m;
   m.V.resize(static_cast<Eigen::Index>(verts.size()), 3);
   for (size_t k = 0; k < verts.size(); ++k) m.V.row(static_cast<Eigen::Index>(k)) = verts[k];

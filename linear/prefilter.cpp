@@ -48,10 +48,34 @@ void unfilter_solution(const ConstraintSet& c, const Eigen::VectorXd& y, Eigen::
   x += c.target();
 }
 
+bool already_prefiltered(const BlockCsr& A, const ConstraintSet& c) {
+  if (c.num_vertices() != A.block_rows()) return false;
+  const auto& rp = A.row_ptr();
+  const auto& col = A.col();
+  for (int i = 0; i < A.block_rows(); ++i) {
+    if (c.count(i) == 0) continue;
+    if (c.count(i) != 3) return false;  // a partial filter S_i != 0 changes the couplings
+    for (int k = rp[i]; k < rp[i + 1]; ++k) {
+      const int j = col[k];
+      if (j == i) {
+        const Block3 D = A.block(k);
+        if (!(D(0, 0) == D(1, 1) && D(1, 1) == D(2, 2)) || !(D - D(0, 0) * Block3::Identity()).isZero(0.0)) return false;
+      } else if (!A.block(k).isZero(0.0) || !A.block(A.find(j, i)).isZero(0.0)) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 const BlockCsr& PrefilteredSystem::matrix(const BlockCsr& A) {
   A_ = &A;
   if (!active()) return A;
   ScopedTimer t(seconds_);
+  if (already_prefiltered(A, *ctx_.constraints)) {
+    Ahat_ = BlockCsr();  // Ahat == A exactly: no copy
+    return A;
+  }
   if (Ahat_.num_blocks() != A.num_blocks() || Ahat_.block_rows() != A.block_rows() || Ahat_.col() != A.col())
     Ahat_ = A;  // new pattern: copy it once
   prefilter_matrix(A, *ctx_.constraints, Ahat_);

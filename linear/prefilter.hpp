@@ -16,6 +16,11 @@ namespace weft::linear {
 
 /// Ahat = S A S + Sigma (I - S). `Ahat` must have A's pattern (copy A once per pattern).
 void prefilter_matrix(const BlockCsr& A, const ConstraintSet& c, BlockCsr& Ahat);
+/// True when Ahat would equal A exactly, so no copy is needed: every constrained vertex is
+/// fully fixed and A already decouples it (zero off-diagonal blocks in its row and column,
+/// a diagonal block sigma I), as `BlockCsr::filter_rows(fixed, -1)` leaves it. O(constrained
+/// vertices x row length).
+bool already_prefiltered(const BlockCsr& A, const ConstraintSet& c);
 /// chat = S (b - A z).
 void prefilter_rhs(const BlockCsr& A, const ConstraintSet& c, const Eigen::VectorXd& b, Eigen::VectorXd& chat);
 /// x = z + S y (the final projection makes the constraints hold to round-off).
@@ -28,7 +33,8 @@ class PrefilteredSystem {
   void set_context(const SolveContext& ctx) { ctx_ = ctx; }
   const SolveContext& context() const { return ctx_; }
   bool active() const { return ctx_.constraints && !ctx_.constraints->empty(); }
-  /// The matrix to factorise or precondition: A itself, or Ahat.
+  /// The matrix to factorise or precondition: A itself (no constraints, or A already
+  /// prefiltered: see `already_prefiltered`), or Ahat (a copy of A's size).
   const BlockCsr& matrix(const BlockCsr& A);
   /// The right-hand side to solve with: b itself, or chat.
   const Eigen::VectorXd& rhs(const Eigen::VectorXd& b);

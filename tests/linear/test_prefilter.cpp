@@ -93,3 +93,40 @@ TEST_CASE("prefiltered right-hand side and final projection meet the constraints
   CHECK(r.norm() <= 1e-10 * sys.b.norm());
   CHECK(sys.b.norm() > 0);
 }
+
+TEST_CASE("a matrix whose fixed rows are already decoupled is used as is without a copy") {
+  support::ClothSystem sys = support::cloth_system(21);
+  // The same pins with zero increments (as the simulator's fixed rows), as full constraints.
+  ConstraintSet pins(sys.A.block_rows());
+  std::vector<unsigned char> fixed(sys.A.block_rows(), 0);
+  for (int i = 0; i < sys.A.block_rows(); ++i)
+    if (sys.pins.count(i) == 3) {
+      pins.fix(i, Eigen::Vector3d::Zero());
+      fixed[i] = 1;
+    }
+  REQUIRE(pins.constrained_vertices() > 0);
+  CHECK_FALSE(linear::already_prefiltered(sys.A, pins));  // couplings still there
+  BlockCsr F = sys.A;
+  F.filter_rows(fixed, -1.0);
+  CHECK(linear::already_prefiltered(F, pins));
+  // Exactly what prefiltering would produce: the shortcut changes nothing but the copy.
+  BlockCsr Ahat = sys.A;
+  linear::prefilter_matrix(sys.A, pins, Ahat);
+  CHECK(Ahat.values() == F.values());
+  linear::PrefilteredSystem pre;
+  pre.set_context(SolveContext{&pins, &sys.x});
+  CHECK(&pre.matrix(F) == &F);
+  CHECK(&pre.matrix(sys.A) != &sys.A);
+  // A partial constraint (a contact normal) needs the copy.
+  ConstraintSet contact = pins;
+  const int free_vertex = sys.A.block_rows() / 2;
+  REQUIRE(contact.count(free_vertex) == 0);
+  contact.add_direction(free_vertex, Eigen::Vector3d::UnitZ(), 0.0);
+  CHECK_FALSE(linear::already_prefiltered(F, contact));
+  // A fixed row whose diagonal is not a multiple of the identity is not prefiltered.
+  BlockCsr G = F;
+  int fixed_vertex = 0;
+  while (!fixed[fixed_vertex]) ++fixed_vertex;
+  G.block(G.diagonal(fixed_vertex))(0, 0) *= 2;
+  CHECK_FALSE(linear::already_prefiltered(G, pins));
+}

@@ -187,7 +187,7 @@ TEST_SUITE("models") {
       if (flips == &all_flips) CHECK(swapped == model.num_hinges());
       Paths<Angle> paths(model, s.num_vertices());
       // The pattern is that of the hinges whatever the layout of the slots.
-      REQUIRE(paths.plan.pattern().col() == ref.plan.pattern().col());
+      REQUIRE(paths.plan.structure().col() == ref.plan.structure().col());
       const BlockCsr Fn = paths.hessian(s, Paths<Angle>::refactored), Fs = paths.hessian(s, Paths<Angle>::per_hinge);
       CHECK(ulps(Hn, Fn) * ulp <= 1e-14);
       CHECK(ulps(Hs, Fs) * ulp <= 1e-14);  // which triangle is "upper" in §6.6 does not matter
