@@ -230,7 +230,7 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   rep.prefilter_seconds = pre_.take_seconds();
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
   rep.memory_bytes = sizeof(double) * static_cast<std::size_t>(y_.size());
-  if (c) rep.memory_bytes += sizeof(double) * (Ahat_->values().capacity() + static_cast<std::size_t>(chat.size()));
+  if (c) rep.memory_bytes += pre_.bytes();
   detail::fill_common(slot_, work_, rep);
   return rep;
 }

@@ -42,6 +42,11 @@ class PrefilteredSystem {
   void finish(Eigen::VectorXd& y) const;
   /// The matrix handed to the last `matrix` call (the unfiltered A).
   const BlockCsr* original() const { return A_; }
+  /// Bytes owned: the copy Ahat (none when A was already prefiltered) and the prefiltered rhs.
+  std::size_t bytes() const {
+    return sizeof(double) * (Ahat_.values().capacity() + static_cast<std::size_t>(chat_.size())) +
+           sizeof(int) * (Ahat_.col().capacity() + Ahat_.row_ptr().capacity());
+  }
   /// Seconds spent prefiltering since the last call (and reset).
   double take_seconds();
 

@@ -67,6 +67,20 @@ class OffsetQuartic final : public NewtonProblem {
  private:
   double c_, k_ = 1;
 };
+
+/// minimize() from x (updated in place) with fresh reports.
+struct Minimized {
+  NewtonFailure failure;
+  NewtonReport report;
+};
+Minimized run_minimize(NewtonProblem& q, Eigen::VectorXd& x, const NewtonParams& prm) {
+  Minimized m;
+  double hint = 0;
+  LinearReport lr;
+  StageTimes times;
+  m.failure = minimize(q, x, 0.0, prm, hint, m.report, lr, times);
+  return m;
+}
 }  // namespace
 
 TEST_SUITE("integrators") {
@@ -80,11 +94,7 @@ TEST_SUITE("integrators") {
       prm.relative_tolerance = 1e-14;
       prm.length_tolerance = 0;
       Eigen::VectorXd x = Eigen::VectorXd::Constant(1, 3.0);
-      double hint = 0;
-      NewtonReport nr;
-      LinearReport lr;
-      StageTimes times;
-      const NewtonFailure f = minimize(q, x, 0.0, prm, hint, nr, lr, times);
+      const auto [f, nr] = run_minimize(q, x, prm);
       REQUIRE_MESSAGE(f.status == Status::success, f.message);
       CHECK(nr.final_residual <= nr.tolerance);
       CHECK(std::abs(x[0] - 1) <= 1e-13);
@@ -208,11 +218,7 @@ TEST_SUITE("integrators") {
     prm.trust_radius = 1.0;
     prm.relative_tolerance = 1e-12;
     prm.length_tolerance = 0;
-    double hint = 0;
-    NewtonReport nr;
-    LinearReport lr;
-    StageTimes times;
-    const NewtonFailure f = minimize(q, x, 0.0, prm, hint, nr, lr, times);
+    const auto [f, nr] = run_minimize(q, x, prm);
     REQUIRE_MESSAGE(f.status == Status::success, f.message);
     CHECK(x[0] == doctest::Approx(3.0).epsilon(1e-12));
     CHECK(nr.history.front().directional_derivative < 0);  // W''(0) < 0: the first step still descends
