@@ -89,6 +89,25 @@ concept LinearSolver = Component<L> && std::constructible_from<L, const typename
 template <class L>
 concept HasSolveContext = requires(L& l, const SolveContext& ctx) { l.set_context(ctx); };
 
+/// Optional hook of a contact strategy: equality constraints inside the implicit solve
+/// (Baraff & Witkin 1998; spec 02 §10, spec 04 §7). The integrators hand them to the
+/// linear solver, which must then model `HasSolveContext` (a static_assert says so).
+///   `cc.constraints(trial, set)`: resets `set` to trial's vertex count and fills it with
+///     the constraints n^T dx_i = value on the increment dx of the Newton direction at the
+///     iterate `trial` (positions x_k + d); values are measured from trial's positions,
+///     so `x_k + d + set.target()` satisfies them to first order.
+///   `c.accept_reactions(force)`: at the accepted solution d, the #V*3 forces [N] the
+///     constraints exert, (I - S) f(d) / dt^2 with f the backward Euler residual (a
+///     linearly implicit step: that of the linear system it solved; see
+///     integrators/step_system.hpp); called once per successful step, before `end_step`.
+/// Semantics: the integrator's iterates satisfy the constraints (it projects its initial
+/// guess with the targets), its gradient is filtered (S f), and it stops on ||S f||.
+template <class C>
+concept HasConstraints = requires(C& c, const C& cc, const State& trial, ConstraintSet& set, const Eigen::VectorXd& force) {
+  cc.constraints(trial, set);  // constraints of the Newton direction at `trial`
+  c.accept_reactions(force);   // constraint forces at the solution [N]
+};
+
 /// Advances a `StepProblem` by one time step.
 ///   construction: `I(const I::Params&)`.
 template <class I, class E, class C, class L>

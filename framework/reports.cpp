@@ -86,6 +86,23 @@ Json to_json(const NewtonReport& r, bool with_history) {
 Json to_json(const ContactReport& r) {
   Json j{{"status", to_string(r.status)}, {"contacts", r.contacts}, {"detection_seconds", r.detection_seconds},
          {"response_seconds", r.response_seconds}};
+  // Strategy counters: written when set, so a scene without that strategy stays terse.
+  const auto put = [&j](const char* key, auto v) {
+    if (v != 0) j[key] = v;
+  };
+  put("obstacle_contacts", r.obstacle_contacts);
+  put("proximity_contacts", r.proximity_contacts);
+  put("ccd_hits", r.ccd_hits);
+  put("ccd_sweeps", r.ccd_sweeps);
+  put("impulses", r.impulses);
+  put("impact_zones", r.impact_zones);
+  put("zone_vertices", r.zone_vertices);
+  put("zone_iterations", r.zone_iterations);
+  put("released", r.released);
+  put("sticking", r.sticking);
+  put("projected", r.projected);
+  put("max_penetration", r.max_penetration);
+  put("solve_penetration", r.solve_penetration);
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }

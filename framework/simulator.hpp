@@ -80,8 +80,9 @@ class Simulator {
         contact_(scene_, prm_.contact),
         linear_(prm_.linear) {
     Params::validate(prm_).throw_if_failed();
-    static_assert(!Integ::minimizes_potential || Contact::provides_potential,
-                  "this integrator minimises a potential: the contact strategy must act through potential terms");
+    static_assert(!Integ::minimizes_potential || Contact::provides_potential || HasConstraints<Contact>,
+                  "this integrator minimises a potential: the contact strategy must act through potential terms "
+                  "or equality constraints of the solve");
     state_ = scene_.initial_state();
     energy_.declare(plan_);
     contact_.declare(plan_);
@@ -116,10 +117,9 @@ class Simulator {
     if (r.status != Status::success) return fail(rep, r.failed_stage, r.status, r.message);
     {
       ScopedTimer t(rep.times, Stage::contact);
-      const ContactReport c = contact_.end_step(state_, dt);
-      rep.contact.contacts = std::max(rep.contact.contacts, c.contacts);
-      rep.contact.response_seconds += c.response_seconds;
-      if (c.status != Status::success) return fail(rep, "contact response", c.status, c.message);
+      rep.contact.merge_end(contact_.end_step(state_, dt));
+      if (rep.contact.status != Status::success)
+        return fail(rep, "contact response", rep.contact.status, rep.contact.message);
     }
     if (!state_.x.allFinite() || !state_.v.allFinite())
       return fail(rep, "integrator", Status::numerical_issue, "non-finite positions or velocities after the step");

@@ -3,6 +3,7 @@
 /// Numerical outcomes and the reports every stage returns. A `StepReport` nests the
 /// Newton, linear and contact reports of one time step; ablations, plots and benchmarks
 /// read these, never log lines.
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <string>
@@ -78,6 +79,50 @@ struct ContactReport {
   double detection_seconds = 0;
   double response_seconds = 0;
   std::string message;
+  // Counters of the impulse strategy (contact/impulse.hpp); 0 for the other strategies.
+  int obstacle_contacts = 0;   ///< vertex-obstacle contacts (within the thickness at the end of the step, or crossed during it)
+  int proximity_contacts = 0;  ///< cloth-cloth proximity pairs closer than the thickness at the end of the step
+  int ccd_hits = 0;            ///< cloth-cloth CCD hits, summed over every detection of the step
+  int ccd_sweeps = 0;          ///< CCD impulse sweeps that applied impulses
+  int impulses = 0;            ///< impulses applied (obstacle, repulsion and CCD)
+  int impact_zones = 0;        ///< impact zones (failsafe) at the end of the step
+  int zone_vertices = 0;       ///< vertices moved rigidly by the impact zones
+  int zone_iterations = 0;     ///< impact-zone iterations (0: the impulses sufficed)
+  double max_penetration = 0;  ///< [m] largest depth of a free vertex below the contact thickness of an obstacle after the response
+  // Counters of the obstacle-constraint strategy (contact/obstacle_constraints.hpp), which also
+  // fills `obstacle_contacts` and `max_penetration`; 0 for the other strategies.
+  int released = 0;            ///< contacts released: end_step, their normal reaction pulled; begin_step, dropped at its start (pulled, or separating)
+  int sticking = 0;            ///< contacts held by static friction (3D constraints) during the step
+  int projected = 0;           ///< vertices projected onto an obstacle's thickness surface after the solve
+  double solve_penetration = 0;  ///< [m] largest depth below the contact thickness after the solve, before the projection
+
+  /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
+  /// event counters (impulses, hits, releases, projections) add up, counts of contacts
+  /// present take the larger, depths the end-of-step value (after the response) or the
+  /// larger (during the solve); a failing `end` sets the status and message.
+  ContactReport& merge_end(const ContactReport& end) {
+    if (end.status != Status::success) {
+      status = end.status;
+      message = end.message;
+    }
+    contacts = std::max(contacts, end.contacts);
+    obstacle_contacts = std::max(obstacle_contacts, end.obstacle_contacts);
+    proximity_contacts = std::max(proximity_contacts, end.proximity_contacts);
+    sticking = std::max(sticking, end.sticking);
+    detection_seconds += end.detection_seconds;
+    response_seconds += end.response_seconds;
+    ccd_hits += end.ccd_hits;
+    ccd_sweeps += end.ccd_sweeps;
+    impulses += end.impulses;
+    impact_zones += end.impact_zones;
+    zone_vertices += end.zone_vertices;
+    zone_iterations += end.zone_iterations;
+    released += end.released;
+    projected += end.projected;
+    max_penetration = end.max_penetration;
+    solve_penetration = std::max(solve_penetration, end.solve_penetration);
+    return *this;
+  }
 };
 
 /// Energies at the end of a step [J]; `terms` follows the energy model's term names.

@@ -3,8 +3,13 @@
 /// `LinearlyImplicit`: one Newton step of backward Euler from d = 0 (the Baraff-Witkin
 /// baseline, spec 02 §4 "LIE"): (M~ + dt^2 H(q_k)) d = dt M v_k - dt^2 grad V(q_k).
 /// No iteration and no line search; the residual left after the step is reported.
+/// With contact constraints (`HasConstraints`) the step starts from d0 = z, the vertices
+/// in contact moved onto their constraints (BW98's position correction), and solves the
+/// constrained system from there (step_system.hpp); the constraint forces handed to the
+/// strategy are those of that linear system.
 #include <string_view>
 
+#include "framework/concepts.hpp"
 #include "framework/simulator.hpp"
 #include "integrators/newton.hpp"
 #include "integrators/step_system.hpp"
@@ -40,8 +45,13 @@ class LinearlyImplicit {
     StepReport rep;
     StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
     initial_displacement(p, InitialGuess::zero, d_);
+    system.make_feasible(d_);
+    if constexpr (HasConstraints<C>) d0_ = d_;
     const NewtonFailure f = linearized_step(system, d_, newton_, shift_hint_, rep.newton, rep.linear);
-    if (f.status == Status::success) commit(p, d_);
+    if (f.status == Status::success) {
+      system.report_reactions(d_, &d0_);  // the forces of the linear system solved
+      commit(p, d_);
+    }
     return finish(rep, f);
   }
 
@@ -49,7 +59,7 @@ class LinearlyImplicit {
   Params prm_;
   NewtonParams newton_;
   double shift_hint_ = 0;
-  Eigen::VectorXd d_;
+  Eigen::VectorXd d_, d0_;
 };
 
 }  // namespace weft::integrators

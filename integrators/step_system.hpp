@@ -10,11 +10,32 @@
 /// (c: mass-proportional damping, whose drag -c M v_{k+1} has the potential c dt/2 d^T M d.)
 /// Pinned and scripted vertices take their prescribed displacement in d and are filtered
 /// out of f and K.
+///
+/// Contact constraints (a strategy modelling `HasConstraints`, e.g. obstacle_constraints.hpp;
+/// BW98, spec 02 §10, spec 04 §7): min E_inc(d) subject to per-vertex equality constraints
+/// on d, linearised at each iterate. The iterate is made feasible first (`make_feasible`:
+/// d += z, the targets of the constraints at d, exact for the analytic obstacles); then
+///  - `assemble` asks the strategy for the constraints of the Newton direction at x_k + d
+///    (values measured from these positions: zero on a feasible iterate, the remaining
+///    gap after a partial step or on a curved obstacle), which `factorize` hands to the
+///    linear solver with the positions (`SolveContext`); the direction p satisfies
+///    S (K p + f) = 0 and (I - S) p = z, so the full step is feasible;
+///  - `gradient` returns the filtered S f (S at the trial positions): the residual of the
+///    constrained problem, which the stopping tests and the merits read; on a feasible
+///    iterate f^T p = -(S f)^T (S K S)^+ (S f) < 0, so p descends E_inc along the
+///    constraint manifold and the line searches (E_inc) and the root merit (1/2 |S f|^2)
+///    work unchanged; `multiply` applies S K S (trust region, root-finding slope);
+///  - `report_reactions` hands the strategy the constraint forces (I - S) f(d) / dt^2 at the
+///    accepted d (f = dt^2 R there: the reaction of the equations of motion).
+/// The fixed rows of pinned vertices stay filtered out of K as without contact; so are the
+/// rows of vertices whose constraints prescribe all three components (exact: their
+/// increment is zero on a feasible iterate).
 #include <Eigen/Core>
 
 #include <cmath>
 #include <limits>
 #include <string_view>
+#include <vector>
 
 #include "framework/simulator.hpp"
 #include "integrators/newton.hpp"
@@ -23,6 +44,11 @@ namespace weft::integrators {
 
 template <class E, class C, class L>
 class StepSystem final : public NewtonProblem {
+  static constexpr bool constrained = HasConstraints<C>;
+  static_assert(!constrained || HasSolveContext<L>,
+                "this contact strategy puts equality constraints into the implicit solve: the linear solver must take "
+                "them through set_context (HasSolveContext): use DiagPcg, DiagPpcg, SaPpcg, SaMpcg or Direct");
+
  public:
   StepSystem(const E& energy, C& contact, L& linear, StepProblem& p, StageTimes& times)
       : energy_(energy), contact_(contact), linear_(linear), p_(p), times_(times), trial_(p.state) {
@@ -60,6 +86,11 @@ class StepSystem final : public NewtonProblem {
     contact_.add_gradient(trial_, g_);
     f = mt_.cwiseProduct(d) - mv_ + dt2_ * g_;
     p_.state.zero_constrained(f);
+    if constexpr (constrained) {
+      f_ = f;
+      contact_.constraints(trial_, filter_);
+      filter_.filter(f);
+    }
   }
   double norm(const Eigen::VectorXd& f) const override { return std::sqrt(f.cwiseAbs2().cwiseQuotient(mt_).sum()); }
   void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
@@ -71,14 +102,35 @@ class StepSystem final : public NewtonProblem {
     p_.buffer.finish();
     p_.matrix.scale(dt2_);
     p_.matrix.add_diagonal((1.0 + shift) * mt_);
-    p_.matrix.filter_rows(p_.fixed, -1.0);  // fixed rows decoupled, diagonal tr(K_ii)/3
+    if constexpr (constrained) {
+      contact_.constraints(trial_, set_);  // of the direction at x_k + d
+      // Vertices whose three components are prescribed (static friction) are decoupled like
+      // pinned ones: on a feasible iterate their increment is 0, so the solution is the same,
+      // and no solver sees their 3x3 blocks (MPCG's block-Jacobi is built from K unfiltered).
+      fixed_ = p_.fixed;
+      saved_rows_.clear();
+      saved_blocks_.clear();
+      for (int i = 0; i < set_.num_vertices(); ++i)
+        if (set_.count(i) == 3 && !fixed_[i]) {
+          fixed_[i] = 1;
+          saved_rows_.push_back(i);  // their rows of K, for the reactions of a linearised step
+          const auto& vals = p_.matrix.values();
+          saved_blocks_.insert(saved_blocks_.end(), vals.begin() + 9 * p_.matrix.row_ptr()[i],
+                               vals.begin() + 9 * p_.matrix.row_ptr()[i + 1]);
+        }
+      p_.matrix.filter_rows(fixed_, -1.0);
+    } else {
+      p_.matrix.filter_rows(p_.fixed, -1.0);  // fixed rows decoupled, diagonal tr(K_ii)/3
+    }
   }
   Status factorize() override {
     ScopedTimer t(times_, Stage::linear_setup);
     Status st = Status::success;
     // Solvers that take a context get the trial positions (the rotation modes of smoothed
-    // aggregation); fixed vertices are already filtered out of the matrix above.
-    if constexpr (HasSolveContext<L>) linear_.set_context(SolveContext{nullptr, &trial_.x});
+    // aggregation) and the contact constraints of the iterate; fixed vertices are already
+    // filtered out of the matrix above.
+    if constexpr (constrained) linear_.set_context(SolveContext{set_.empty() ? nullptr : &set_, &trial_.x});
+    else if constexpr (HasSolveContext<L>) linear_.set_context(SolveContext{nullptr, &trial_.x});
     if (!p_.pattern_analyzed) {
       st = linear_.analyze_pattern(p_.matrix);
       p_.pattern_analyzed = st == Status::success;
@@ -91,13 +143,69 @@ class StepSystem final : public NewtonProblem {
     p_.state.zero_constrained(x);
     return r;
   }
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { p_.matrix.multiply(x, y); }
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override {
+    if constexpr (constrained) {
+      if (!set_.empty()) {  // S K S: the Newton matrix on the constraint null space
+        tmp_ = x;
+        set_.filter(tmp_);
+        p_.matrix.multiply(tmp_, y);
+        set_.filter(y);
+        return;
+      }
+    }
+    p_.matrix.multiply(x, y);
+  }
   void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override {
     out = f.cwiseQuotient(mt_);
     p_.state.zero_constrained(out);
   }
   double merit_scale() const override { return dt2_ * std::abs(V0_); }
   double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(mt_.cwiseProduct(v)); }
+
+  /// d += z, the targets of the contact constraints at x_k + d: the iterate then meets
+  /// them (exactly for the analytic obstacles). No-op without constraints.
+  void make_feasible(Eigen::VectorXd& d) {
+    if constexpr (constrained) {
+      trial_.x = x0_ + d;
+      contact_.constraints(trial_, filter_);
+      if (!filter_.empty()) d += filter_.target();
+    }
+  }
+  /// At the accepted d: hands the strategy the constraint forces (I - S) f(d) / dt^2 [N],
+  /// S the filter of the constraints at d. With `d0` (a linearly implicit step, one solve
+  /// from d0), the forces of the linear system that step solved instead,
+  /// (I - S) (f(d0) + K (d - d0)) / dt^2 with K and S of that solve (BW98 take the
+  /// constraint forces from the residual of the linear system): f(d) would add the
+  /// nonlinear error of the single step. No-op without constraints.
+  void report_reactions(const Eigen::VectorXd& d, const Eigen::VectorXd* d0 = nullptr) {
+    if constexpr (constrained) {
+      Eigen::VectorXd f, force;
+      if (!d0) {
+        gradient(d, f);  // leaves f(d) unfiltered in f_ and the constraints at d in filter_
+        force = f_ - f;  // (I - S) f: S f is what gradient returned
+      } else {
+        gradient(*d0, f);
+        const Eigen::VectorXd step = d - *d0;
+        p_.matrix.multiply(step, force);  // K step; the rows filtered out below are restored
+        const auto& rp = p_.matrix.row_ptr();
+        const auto& col = p_.matrix.col();
+        size_t b = 0;
+        for (int i : saved_rows_) {
+          Eigen::Vector3d y = Eigen::Vector3d::Zero();
+          for (int k = rp[i]; k < rp[i + 1]; ++k, ++b)
+            y += Eigen::Map<const Block3>(saved_blocks_.data() + 9 * b) * step.segment<3>(3 * col[k]);
+          force.segment<3>(3 * i) = y;
+        }
+        force += f_;
+        f = force;
+        set_.filter(f);
+        force -= f;  // (I - S) with the constraints of the solve
+      }
+      p_.state.zero_constrained(force);
+      force /= dt2_;
+      contact_.accept_reactions(force);
+    }
+  }
 
  private:
   const E& energy_;
@@ -108,6 +216,14 @@ class StepSystem final : public NewtonProblem {
   State trial_;
   Eigen::VectorXd x0_, mt_, mv_, g_;
   double dt2_ = 0, V0_ = 0, free_mass_ = 0;
+  // Contact constraints: of the prepared Newton matrix (handed to the solver), and of the
+  // last gradient evaluation (its filter); f_ is the last unfiltered gradient.
+  ConstraintSet set_, filter_;
+  std::vector<unsigned char> fixed_;  // pinned, scripted, or fully constrained by contact
+  std::vector<int> saved_rows_;       // rows of fully constrained free vertices, before the filter
+  std::vector<double> saved_blocks_;  // their blocks, 9 per pattern entry, row by row
+  Eigen::VectorXd f_;
+  mutable Eigen::VectorXd tmp_;
 };
 
 enum class InitialGuess {
@@ -153,17 +269,25 @@ inline StepReport& finish(StepReport& rep, const NewtonFailure& f) {
 }
 
 /// One backward Euler step solved by `solve(system, d, absolute_tolerance, report)` from
-/// the initial guess (falling back to d = 0 when the guess leaves the model's domain);
-/// commits the state only on success.
+/// the initial guess (falling back to d = 0 when the guess leaves the model's domain),
+/// made feasible for the contact constraints if any; commits the state only on success
+/// (after handing the strategy its constraint forces).
 template <class E, class C, class L, class Solve>
 StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, InitialGuess guess, double length_tolerance,
                        Eigen::VectorXd& d, Solve&& solve) {
   StepReport rep;
   StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
   initial_displacement(p, guess, d);
-  if (!std::isfinite(system.potential(d))) initial_displacement(p, InitialGuess::zero, d);
+  system.make_feasible(d);
+  if (!std::isfinite(system.potential(d))) {
+    initial_displacement(p, InitialGuess::zero, d);
+    system.make_feasible(d);
+  }
   const NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
-  if (f.status == Status::success) commit(p, d);
+  if (f.status == Status::success) {
+    system.report_reactions(d);
+    commit(p, d);
+  }
   return finish(rep, f);
 }
 

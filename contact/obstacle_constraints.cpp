@@ -1,0 +1,271 @@
+#include "contact/obstacle_constraints.hpp"
+
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <cmath>
+
+#include "framework/error.hpp"
+#include "framework/timers.hpp"
+
+namespace weft::contact {
+
+ObstacleConstraints::ObstacleConstraints(const Scene& scene, const Params& prm)
+    : obstacles_(scene.spec.obstacles), mass_(scene.lumped_masses()), prm_(prm) {
+  Params::validate(prm).throw_if_failed(fmt::format("{}: invalid contact configuration:", scene.path));
+  free_.resize(scene.dof.size());
+  for (size_t i = 0; i < scene.dof.size(); ++i) free_[i] = scene.dof[i] == Dof::free;
+  for (const auto& o : obstacles_) {
+    start_.push_back(ObstaclePose::at(o, 0.0));
+    end_.push_back(start_.back());
+  }
+}
+
+Eigen::Vector3d ObstacleConstraints::carry(int o, const Eigen::Vector3d& x) const {
+  if (obstacles_[o].motion.is_static()) return x;  // exactly, so a vertex at rest has no relative slip
+  const ObstaclePose &a = start_[o], &b = end_[o];
+  return b.rotation * (a.rotation.transpose() * (x - a.center)) + b.center;
+}
+
+Eigen::Vector3d ObstacleConstraints::obstacle_velocity(int o, const Eigen::Vector3d& x, double dt) const {
+  // The material point of the obstacle at x at the end of the step was at T^-1(x) at its start.
+  if (obstacles_[o].motion.is_static()) return Eigen::Vector3d::Zero();
+  const ObstaclePose &a = start_[o], &b = end_[o];
+  const Eigen::Vector3d back = a.rotation * (b.rotation.transpose() * (x - b.center)) + a.center;
+  return (x - back) / dt;
+}
+
+ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
+  ContactReport r;
+  ScopedTimer t(r.detection_seconds);
+  have_reactions_ = false;
+  const int no = static_cast<int>(obstacles_.size());
+  for (int o = 0; o < no; ++o) {
+    start_[o] = ObstaclePose::at(obstacles_[o], s.t);
+    end_[o] = ObstaclePose::at(obstacles_[o], s.t + dt);
+  }
+  const double delta = prm_.thickness, reach = prm_.thickness + prm_.margin;
+  std::vector<Contact> next;
+  size_t old = 0;
+  int receded = 0;
+  for (int i = 0; i < s.num_vertices() && no > 0; ++i) {
+    if (!free_[i]) continue;
+    const Eigen::Vector3d x = s.position(i), v = s.velocity(i), xp = x + dt * v;
+    for (int o = 0; o < no; ++o) {
+      const long long k = key(i, o, no);
+      while (old < contacts_.size() && key(contacts_[old].vertex, contacts_[old].obstacle, no) < k) ++old;
+      const bool kept = old < contacts_.size() && key(contacts_[old].vertex, contacts_[old].obstacle, no) == k;
+      if (std::binary_search(released_.begin(), released_.end(), k)) continue;  // released at the last step
+      const Distance d = end_[o].distance(x);
+      // Relative velocity at the start of the step (the obstacle's over the step).
+      const Eigen::Vector3d vrel = v - (carry(o, x) - x) / dt;
+      const double vn = d.grad.dot(vrel);
+      // In contact: the predicted position within reach of the obstacle where it will be,
+      // or the position within reach and not separating.
+      if (end_[o].distance(xp).phi > reach && !(d.phi <= reach && vn * dt <= prm_.margin)) {
+        receded += kept;
+        continue;
+      }
+      Contact c;
+      if (kept) c = contacts_[old];
+      c.vertex = i;
+      c.obstacle = o;
+      const double mu = obstacles_[o].friction;
+      if (mu == 0) {
+        c.mode = Mode::frictionless;
+      } else if (!kept || c.mode == Mode::frictionless) {
+        // New contact: the impact cone on the relative velocity at the start of the step.
+        const Eigen::Vector3d vt = vrel - vn * d.grad;
+        const double approach = std::max(0.0, -vn);
+        // (A slip below the projection tolerance over the step counts as none.)
+        if (vt.norm() * dt <= mu * approach * dt + prm_.projection_tolerance) {
+          c.mode = Mode::stick;
+        } else {
+          c.mode = Mode::slide;
+          c.slip = vt.normalized();
+          c.normal_force = mass_[i] * approach / dt;
+        }
+      }
+      next.push_back(c);
+    }
+  }
+  // Several obstacles at one vertex: normal constraints only (no stick).
+  for (size_t a = 0; a < next.size();) {
+    size_t b = a + 1;
+    while (b < next.size() && next[b].vertex == next[a].vertex) ++b;
+    if (b - a > 1)
+      for (size_t c = a; c < b; ++c)
+        if (next[c].mode == Mode::stick) {
+          next[c].mode = Mode::slide;
+          next[c].slip.setZero();  // unknown until the end of the step: no kinetic force this step
+        }
+    a = b;
+  }
+  // The step's anchors (stick) and kinetic forces (slide).
+  for (Contact& c : next) {
+    c.friction.setZero();
+    const Eigen::Vector3d x = s.position(c.vertex);
+    if (c.mode == Mode::stick) {
+      const Eigen::Vector3d a = carry(c.obstacle, x);
+      const Distance da = end_[c.obstacle].distance(a);
+      c.anchor = a + (delta - da.phi) * da.grad;
+      ++r.sticking;
+    } else if (c.mode == Mode::slide) {
+      const Eigen::Vector3d n = end_[c.obstacle].distance(x).grad;
+      const Eigen::Vector3d tangent = c.slip - c.slip.dot(n) * n;
+      if (tangent.norm() > 1e-12) c.friction = -obstacles_[c.obstacle].friction * c.normal_force * tangent.normalized();
+    }
+  }
+  r.released = static_cast<int>(released_.size()) + receded;
+  released_.clear();
+  contacts_ = std::move(next);
+  r.contacts = r.obstacle_contacts = static_cast<int>(contacts_.size());
+  return r;
+}
+
+double ObstacleConstraints::energy(const State& s) const {
+  double e = 0;
+  for (const Contact& c : contacts_)
+    if (c.mode == Mode::slide) e -= c.friction.dot(s.position(c.vertex));
+  return e;
+}
+
+void ObstacleConstraints::add_gradient(const State&, Eigen::VectorXd& g) const {
+  for (const Contact& c : contacts_)
+    if (c.mode == Mode::slide) g.segment<3>(3 * c.vertex) -= c.friction;
+}
+
+void ObstacleConstraints::constraints(const State& trial, ConstraintSet& out) const {
+  out.reset(trial.num_vertices());
+  for (const Contact& c : contacts_) {
+    const Eigen::Vector3d x = trial.position(c.vertex);
+    if (c.mode == Mode::stick) {
+      out.fix(c.vertex, c.anchor - x);
+    } else {
+      const Distance d = end_[c.obstacle].distance(x);
+      out.add_direction(c.vertex, d.grad, prm_.thickness - d.phi);
+    }
+  }
+}
+
+void ObstacleConstraints::accept_reactions(const Eigen::VectorXd& force) {
+  reactions_ = force;
+  have_reactions_ = true;
+}
+
+ContactReport ObstacleConstraints::end_step(State& s, double dt) {
+  ContactReport r;
+  {
+    ScopedTimer t(r.response_seconds);
+    respond(s, dt, r);
+  }
+  have_reactions_ = false;
+  last_response_ = r;
+  return r;
+}
+
+void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
+  const int no = static_cast<int>(obstacles_.size());
+  const double delta = prm_.thickness;
+  r.contacts = r.obstacle_contacts = static_cast<int>(contacts_.size());
+  if (!contacts_.empty() && (!have_reactions_ || reactions_.size() != s.x.size())) {
+    r.status = Status::invalid_input;
+    r.message = "obstacle_constraints: no constraint reactions for this step (the integrator must call accept_reactions)";
+    return;
+  }
+  released_.clear();
+  for (int i = 0; i < s.num_vertices() && no > 0; ++i)
+    if (free_[i])
+      for (const auto& p : end_) r.solve_penetration = std::max(r.solve_penetration, delta - p.distance(s.position(i)).phi);
+  for (size_t a = 0; a < contacts_.size();) {
+    size_t b = a + 1;
+    while (b < contacts_.size() && contacts_[b].vertex == contacts_[a].vertex) ++b;
+    const int i = contacts_[a].vertex;
+    const Eigen::Vector3d R = reactions_.segment<3>(3 * i);
+    auto x = s.position(i);
+    auto v = s.velocity(i);
+    // Normal reactions: R_i = sum_c lambda_c n_c (least squares over the contacts of i).
+    Eigen::Matrix3Xd N(3, static_cast<Eigen::Index>(b - a));
+    for (size_t c = a; c < b; ++c) N.col(static_cast<Eigen::Index>(c - a)) = end_[contacts_[c].obstacle].distance(x).grad;
+    Eigen::VectorXd lambda(N.cols());
+    if (N.cols() == 1) lambda[0] = N.col(0).dot(R);
+    else lambda = N.completeOrthogonalDecomposition().solve(R);
+    for (size_t c = a; c < b; ++c) {
+      Contact& k = contacts_[c];
+      if (k.mode == Mode::stick) ++r.sticking;
+      const Eigen::Vector3d n = N.col(static_cast<Eigen::Index>(c - a));
+      const double ln = lambda[static_cast<Eigen::Index>(c - a)];
+      const double vn_end = n.dot(v - obstacle_velocity(k.obstacle, x, dt));
+      if (!(ln > 0) && vn_end * dt >= -prm_.margin) {  // the constraint pulls: release (BW98)
+        released_.push_back(key(k.vertex, k.obstacle, no));
+        continue;
+      }
+      // (A vertex still approaching at the end of the step, e.g. one that reached the
+      // surface just then and needed no force yet, stays in contact, in its mode.)
+      k.normal_force = std::max(ln, 0.0);
+      const double mu = obstacles_[k.obstacle].friction;
+      if (!(ln > 0)) {
+        // no normal force: no friction decision
+      } else if (k.mode == Mode::stick) {
+        const Eigen::Vector3d Rt = R - R.dot(n) * n;
+        if (Rt.norm() > mu * k.normal_force) {  // outside the cone: slide from the next step, against the hold
+          k.mode = Mode::slide;
+          k.slip = -Rt.normalized();
+        }
+      } else if (k.mode == Mode::slide) {
+        const Eigen::Vector3d vrel = v - obstacle_velocity(k.obstacle, x, dt);
+        const Eigen::Vector3d vt = vrel - vrel.dot(n) * n;
+        const Eigen::Vector3d used = k.friction.norm() > 0 ? Eigen::Vector3d(-k.friction.normalized()) : k.slip;
+        if (b - a == 1 && mu > 0 && (used.norm() > 0 ? vt.dot(used) <= 0 : vt.norm() == 0)) {
+          // The explicit force stopped (or reversed) the slip: stop it and stick.
+          v -= vt;
+          k.mode = Mode::stick;
+        } else if (vt.norm() > 0) {
+          k.slip = vt.normalized();
+        }
+      }
+      // A contact that stays holds C = 0 and its hidden constraint grad C qdot = 0 (spec
+      // 02 §10.1) at the end of the step. A single linearised step leaves the vertex off a
+      // curved obstacle by O(step^2 / R), and v = d / dt keeps O(dt) of relative normal
+      // velocity there (the chord of the step), or the approach of a contact made during
+      // the step (moved onto the surface by the first iterate): an inelastic contact keeps
+      // neither.
+      const Distance on = end_[k.obstacle].distance(x);
+      x += (delta - on.phi) * on.grad;
+      const Eigen::Vector3d m = end_[k.obstacle].distance(x).grad;
+      v -= m.dot(v - obstacle_velocity(k.obstacle, x, dt)) * m;
+    }
+    a = b;
+  }
+  std::sort(released_.begin(), released_.end());
+  r.released = static_cast<int>(released_.size());
+  // Projection of whatever is still below the thickness surface (vertices not in contact,
+  // or not quite on their constraint: curved obstacles, several obstacles).
+  for (int i = 0; i < s.num_vertices() && no > 0; ++i) {
+    if (!free_[i]) continue;
+    bool moved = false;
+    for (int o = 0; o < no; ++o) {
+      auto x = s.position(i);
+      const Distance d = end_[o].distance(x);
+      const double depth = delta - d.phi;
+      if (depth <= prm_.projection_tolerance) continue;
+      x += depth * d.grad;
+      auto v = s.velocity(i);
+      const double vn = d.grad.dot(v - obstacle_velocity(o, x, dt));
+      if (vn < 0) v -= vn * d.grad;
+      moved = true;
+    }
+    r.projected += moved;
+  }
+  r.max_penetration = max_penetration(s);
+}
+
+double ObstacleConstraints::max_penetration(const State& s) const {
+  double m = 0;
+  for (int i = 0; i < s.num_vertices(); ++i)
+    if (free_[i])
+      for (const auto& p : end_) m = std::max(m, prm_.thickness - p.distance(s.position(i)).phi);
+  return m;
+}
+
+}  // namespace weft::contact

@@ -1,0 +1,10 @@
+// One explicit instantiation per translation unit (STYLE.md §4, §9).
+#include "policies/combo_factory.hpp"
+#include "policies/presets.hpp"
+
+namespace weft {
+
+template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>;
+WEFT_DEFINE_COMBO(cloth_lie_constraints_diag_pcg, Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>)
+
+}  // namespace weft
