@@ -216,6 +216,13 @@ int AssemblyPlan::add_group(int stencil_size, std::span<const int> vertex_ids) {
   return static_cast<int>(stencil_.size()) - 1;
 }
 
+void AssemblyPlan::replace_group(int group, std::span<const int> vertex_ids) {
+  WEFT_ASSERT(group >= 0 && group < num_groups(), "no group {}", group);
+  WEFT_ASSERT(vertex_ids.size() % stencil_[group] == 0, "{} ids for stencil size {}", vertex_ids.size(), stencil_[group]);
+  ids_[group].assign(vertex_ids.begin(), vertex_ids.end());
+  finalized_ = false;
+}
+
 void AssemblyPlan::finalize(int num_vertices) {
   std::vector<std::vector<int>> cols(num_vertices);
   for (size_t g = 0; g < ids_.size(); ++g) {

@@ -224,6 +224,10 @@ class AssemblyPlan {
   /// Register `vertex_ids.size() / stencil_size` elements; returns the group id that the
   /// model passes back to `ElementBuffer`. Only before `finalize`.
   int add_group(int stencil_size, std::span<const int> vertex_ids);
+  /// Replace the elements of group g (same stencil size), e.g. the contact pairs of a new
+  /// step; the plan must be finalised again (and its buffers and matrices remade) before
+  /// the next assembly. Other groups keep their elements and ids.
+  void replace_group(int group, std::span<const int> vertex_ids);
   /// Build the pattern of a #vertices x #vertices block matrix, the element-to-matrix map
   /// and a colouring of each group.
   void finalize(int num_vertices);

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <concepts>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -107,6 +108,32 @@ concept HasConstraints = requires(C& c, const C& cc, const State& trial, Constra
   cc.constraints(trial, set);  // constraints of the Newton direction at `trial`
   c.accept_reactions(force);   // constraint forces at the solution [N]
 };
+
+/// Optional hook of a contact strategy whose Hessian couples vertices that change from step
+/// to step (e.g. cloth-cloth repulsion springs): after `begin_step`, `c.update_pattern(plan)`
+/// replaces the elements of its own groups (`AssemblyPlan::replace_group`) and returns true
+/// when they changed; the simulator then finalises the plan again and remakes its buffer,
+/// matrix and the linear solver's symbolic analysis. Called only between steps.
+template <class C>
+concept HasDynamicPattern = requires(C& c, AssemblyPlan& plan) {
+  { c.update_pattern(plan) } -> std::same_as<bool>;
+};
+
+/// What a compliance-based contact response needs from the implicit step it follows: solves
+/// with the step's last Newton matrix A = M~ + dt^2 K (the matrix of the last factorisation;
+/// rows of pinned and scripted vertices decoupled, so their components of a solution must
+/// be ignored), and dt. Valid until the strategy's next `end_step` returns.
+struct SystemSolve {
+  std::function<LinearReport(const Eigen::VectorXd& rhs, Eigen::VectorXd& x)> solve;  ///< x = A^-1 rhs (x: initial guess)
+  const BlockCsr* matrix = nullptr;  ///< A
+  double dt = 0;
+};
+
+/// Optional hook of a contact strategy that applies the implicit system's compliance
+/// D = A^-1 in its response (spec 03 §8 (b), "linear compliance"): after a successful
+/// step and before `end_step`, the integrators call `c.accept_system(solve)`.
+template <class C>
+concept HasSystemCompliance = requires(C& c, const SystemSolve& s) { c.accept_system(s); };
 
 /// Advances a `StepProblem` by one time step.
 ///   construction: `I(const I::Params&)`.

@@ -103,6 +103,8 @@ Json to_json(const ContactReport& r) {
   put("projected", r.projected);
   put("max_penetration", r.max_penetration);
   put("solve_penetration", r.solve_penetration);
+  put("springs", r.springs);
+  put("pattern_updates", r.pattern_updates);
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }

@@ -106,6 +106,15 @@ class Simulator {
     {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact = contact_.begin_step(state_, dt);
+      if constexpr (HasDynamicPattern<Contact>)
+        if (rep.contact.status == Status::success && contact_.update_pattern(plan_)) {
+          // The contact couplings changed: a new pattern, and a new symbolic analysis.
+          plan_.finalize(state_.num_vertices());
+          buffer_ = plan_.make_buffer();
+          matrix_ = plan_.pattern();
+          analyzed_ = false;
+          ++rep.contact.pattern_updates;
+        }
     }
     if (rep.contact.status != Status::success) return fail(rep, "contact detection", rep.contact.status, rep.contact.message);
 

@@ -95,6 +95,9 @@ struct ContactReport {
   int sticking = 0;            ///< contacts held by static friction (3D constraints) during the step
   int projected = 0;           ///< vertices projected onto an obstacle's thickness surface after the solve
   double solve_penetration = 0;  ///< [m] largest depth below the contact thickness after the solve, before the projection
+  // Counters of the implicit contact strategy (contact/implicit_contact.hpp).
+  int springs = 0;             ///< cloth-cloth repulsion springs of the step (pairs within the thickness at the start or the prediction)
+  int pattern_updates = 0;     ///< 1 when the springs changed the matrix pattern this step (new symbolic analysis)
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts
@@ -119,6 +122,8 @@ struct ContactReport {
     zone_iterations += end.zone_iterations;
     released += end.released;
     projected += end.projected;
+    springs = std::max(springs, end.springs);
+    pattern_updates += end.pattern_updates;
     max_penetration = end.max_penetration;
     solve_penetration = std::max(solve_penetration, end.solve_penetration);
     return *this;

@@ -50,6 +50,7 @@ class LinearlyImplicit {
     const NewtonFailure f = linearized_step(system, d_, newton_, shift_hint_, rep.newton, rep.linear);
     if (f.status == Status::success) {
       system.report_reactions(d_, &d0_);  // the forces of the linear system solved
+      system.report_system(d_);
       commit(p, d_);
     }
     return finish(rep, f);

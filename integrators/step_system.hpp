@@ -135,7 +135,9 @@ class StepSystem final : public NewtonProblem {
       st = linear_.analyze_pattern(p_.matrix);
       p_.pattern_analyzed = st == Status::success;
     }
-    return st == Status::success ? linear_.factorize(p_.matrix) : st;
+    if (st == Status::success) st = linear_.factorize(p_.matrix);
+    factorized_ = st == Status::success;
+    return st;
   }
   LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& x) override {
     ScopedTimer t(times_, Stage::linear_solve);
@@ -162,6 +164,20 @@ class StepSystem final : public NewtonProblem {
   double merit_scale() const override { return dt2_ * std::abs(V0_); }
   double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(mt_.cwiseProduct(v)); }
 
+  /// Hands a compliance-based strategy (`HasSystemCompliance`) solves with the last
+  /// Newton matrix factorised in this step; when the iteration converged without one (or
+  /// the factorisation failed), the matrix at the accepted d, projected to positive
+  /// semi-definite, is assembled and factorised first. No-op for other strategies.
+  void report_system(const Eigen::VectorXd& d) {
+    if constexpr (HasSystemCompliance<C>) {
+      if (!factorized_) {
+        assemble(d, HessianMode::projected, 0.0);
+        factorize();
+      }
+      contact_.accept_system(SystemSolve{[this](const Eigen::VectorXd& rhs, Eigen::VectorXd& x) { return linear_.solve(rhs, x); },
+                                         &p_.matrix, p_.dt});
+    }
+  }
   /// d += z, the targets of the contact constraints at x_k + d: the iterate then meets
   /// them (exactly for the analytic obstacles). No-op without constraints.
   void make_feasible(Eigen::VectorXd& d) {
@@ -216,6 +232,7 @@ class StepSystem final : public NewtonProblem {
   State trial_;
   Eigen::VectorXd x0_, mt_, mv_, g_;
   double dt2_ = 0, V0_ = 0, free_mass_ = 0;
+  bool factorized_ = false;  // a factorisation succeeded in this step
   // Contact constraints: of the prepared Newton matrix (handed to the solver), and of the
   // last gradient evaluation (its filter); f_ is the last unfiltered gradient.
   ConstraintSet set_, filter_;
@@ -286,6 +303,7 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
   const NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   if (f.status == Status::success) {
     system.report_reactions(d);
+    system.report_system(d);
     commit(p, d);
   }
   return finish(rep, f);

@@ -5,7 +5,7 @@
 /// `extern template` here so no other file instantiates it again.
 #include "contact/impulse.hpp"
 #include "contact/no_contact.hpp"
-#include "contact/obstacle_constraints.hpp"
+#include "contact/implicit_contact.hpp"
 #include "contact/obstacle_penalty.hpp"
 #include "framework/simulator.hpp"
 #include "integrators/backward_euler_root.hpp"
@@ -36,9 +36,9 @@ using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, c
 using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 using ClothIpImpulseDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::Direct>;
-using ClothIpConstraintsDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::Direct>;
-using ClothLieConstraintsDiagPcg = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>;
-using ClothIpConstraintsSaPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::SaPpcg>;
+using ClothIpConstraintsDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
+using ClothLieConstraintsDiagPcg = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
+using ClothIpConstraintsSaPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;
 using ClothOrthoIpDirect = Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothRootDirect = Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 using ClothLieDirect = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;
@@ -50,9 +50,9 @@ extern template class Simulator<ClothTheta, integrators::IncrementalPotential, c
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::Direct>;
-extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::Direct>;
-extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>;
-extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::SaPpcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;
 extern template class Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;

@@ -20,11 +20,11 @@
   X(cloth_ip_impulse_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "impulse", "direct", "Bridson-style impulses after the solve: obstacles and self contact with friction, impact zones") \
   X(cloth_ip_constraints_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
-    "obstacle_constraints", "direct", "obstacle contact as equality constraints of the solve (BW98), released when pulling, Coulomb friction") \
+    "implicit_contact", "direct", "contact inside the solve (BW98): obstacle equality constraints released when pulling with Coulomb friction, cloth-cloth repulsion springs, impulse failsafe") \
   X(cloth_lie_constraints_diag_pcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", \
-    "obstacle_constraints", "diag_pcg", "Baraff-Witkin 1998: one linear solve per step, obstacle constraints filtered by modified PCG") \
+    "implicit_contact", "diag_pcg", "Baraff-Witkin 1998: one linear solve per step, obstacle constraints filtered by modified PCG, repulsion springs") \
   X(cloth_ip_constraints_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
-    "obstacle_constraints", "sa_ppcg", "obstacle constraints with smoothed-aggregation prefiltered PCG (thesis ch. 11)") \
+    "implicit_contact", "sa_ppcg", "contact inside the solve with smoothed-aggregation prefiltered PCG (the thesis' ch. 11 simulator)") \
   X(cloth_root_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "backward_euler_root", "none",   \
     "direct", "backward Euler as root finding on the residual (the thesis' comparison, ch. 6)")             \
   X(cloth_lie_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",     \
@@ -63,13 +63,14 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
     for (size_t c = 0; c < scene.spec.cloths.size(); ++c)
       if (scene.spec.cloths[c].material.orthotropic())
         return fmt::format("cloths.{}.material.model = orthotropic needs membrane(stvk, orthotropic)", c);
-  if ((combo.contact == "obstacle_penalty" || combo.contact == "obstacle_constraints") && scene.spec.obstacles.empty())
-    return fmt::format("the scene has no obstacles: contact = {} would pay for a contact stage it does not use", combo.contact);
-  if (combo.contact == "impulse" && scene.spec.obstacles.empty()) {
+  if (combo.contact == "obstacle_penalty" && scene.spec.obstacles.empty())
+    return "the scene has no obstacles: contact = obstacle_penalty would pay for a contact stage it does not use";
+  if ((combo.contact == "impulse" || combo.contact == "implicit_contact") &&
+      scene.spec.obstacles.empty()) {
     const Json* c = scene.solver.contains("contact") ? &scene.solver["contact"] : nullptr;
     if (c && c->is_object() && c->contains("self_contact") && (*c)["self_contact"] == false)
-      return "the scene has no obstacles and contact.self_contact = false: contact = impulse would pay for a contact stage "
-             "it does not use";
+      return fmt::format("the scene has no obstacles and contact.self_contact = false: contact = {} would pay for a contact "
+                         "stage it does not use", combo.contact);
   }
   return {};
 }

@@ -4,7 +4,7 @@
 
 namespace weft {
 
-template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::Direct>;
-WEFT_DEFINE_COMBO(cloth_ip_constraints_direct, Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::Direct>)
+template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
+WEFT_DEFINE_COMBO(cloth_ip_constraints_direct, Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>)
 
 }  // namespace weft

@@ -4,7 +4,7 @@
 
 namespace weft {
 
-template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::SaPpcg>;
-WEFT_DEFINE_COMBO(cloth_ip_constraints_sa_ppcg, Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstacleConstraints, linear::SaPpcg>)
+template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;
+WEFT_DEFINE_COMBO(cloth_ip_constraints_sa_ppcg, Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>)
 
 }  // namespace weft

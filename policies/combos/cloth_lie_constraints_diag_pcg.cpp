@@ -4,7 +4,7 @@
 
 namespace weft {
 
-template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>;
-WEFT_DEFINE_COMBO(cloth_lie_constraints_diag_pcg, Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ObstacleConstraints, linear::DiagPcg>)
+template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
+WEFT_DEFINE_COMBO(cloth_lie_constraints_diag_pcg, Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>)
 
 }  // namespace weft
