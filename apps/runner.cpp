@@ -69,6 +69,8 @@ MeshData obstacle_mesh(const ObstacleSpec& o, double t) {
                                       (k & 4 ? 1 : -1) * o.half_extents[2]);
     m.F.resize(12, 3);
     m.F << 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5;
+  } else if (o.shape == ObstacleShape::mesh) {
+    if (o.mesh) m.V = o.mesh->V, m.F = o.mesh->F;  // body coordinates: the OBJ, scaled (and welded)
   } else {
     const Eigen::Vector3d n = o.normal;
     const Eigen::Vector3d a = n.unitOrthogonal(), b = n.cross(a);

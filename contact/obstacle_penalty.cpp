@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "contact/mesh_distance.hpp"
 #include "framework/error.hpp"
 #include "framework/timers.hpp"
 
@@ -20,6 +21,13 @@ ObstaclePose ObstaclePose::at(const ObstacleSpec& o, double t) {
   p.radius = o.radius;
   p.half_extents = o.half_extents;
   p.normal = p.rotation * o.normal;
+  if (o.shape == ObstacleShape::mesh) {
+    if (!o.mesh)
+      throw ConfigError(fmt::format("obstacle '{}' (shape = mesh, file \"{}\") has no geometry: load the scene with build_scene, or "
+                                    "set ObstacleSpec::mesh with load_obstacle_mesh",
+                                    o.name, o.file));
+    p.mesh = &MeshDistance::of(*o.mesh);
+  }
   return p;
 }
 
@@ -74,6 +82,13 @@ Distance ObstaclePose::distance(const Eigen::Vector3d& x) const {
       }
       d.grad = rotation * g;
       d.hess = rotation * h * rotation.transpose();
+      break;
+    }
+    case ObstacleShape::mesh: {
+      const Distance b = mesh->distance(rotation.transpose() * (x - center));
+      d.phi = b.phi;
+      d.grad = rotation * b.grad;
+      d.hess = rotation * b.hess * rotation.transpose();
       break;
     }
   }

@@ -1,7 +1,7 @@
 #pragma once
 /// \file obstacle_penalty.hpp
-/// `ObstaclePenalty`: frictionless contact with the scene's analytic obstacles (sphere,
-/// box, plane, all with scripted motion) as a penalty potential inside the implicit solve.
+/// `ObstaclePenalty`: frictionless contact with the scene's obstacles (sphere, box, plane,
+/// triangle mesh, all with scripted motion) as a penalty potential inside the implicit solve.
 ///
 /// For vertex i with signed distance phi_i to an obstacle (posed at the end of the step),
 ///   E_i = 1/2 kappa m_i (delta - phi_i)^2   if phi_i < delta, else 0,
@@ -9,7 +9,8 @@
 /// contact pressure does not depend on the mesh resolution). Exact gradient and Hessian:
 ///   grad E_i = -kappa m_i (delta - phi) grad phi,
 ///   Hess E_i = kappa m_i (grad phi grad phi^T - (delta - phi) Hess phi);
-/// the second term is negative semi-definite for convex obstacles and is dropped in
+/// the second term is negative semi-definite for convex obstacles (and near the convex
+/// edges and vertices of a mesh) and is dropped in
 /// HessianMode::projected. A stand-in until the contact strategies of the cloth-contact
 /// issue land: no friction (a scene with friction > 0 is rejected), no self contact.
 #include <Eigen/Core>
@@ -31,14 +32,20 @@ struct Distance {
   Eigen::Matrix3d hess = Eigen::Matrix3d::Zero();
 };
 
+class MeshDistance;
+
 /// Pose of an obstacle at time t: centre c(t) and rotation R(t) from its scripted motion.
+/// Body coordinates are y = R^T (x - c); a mesh obstacle's OBJ origin sits at c.
 struct ObstaclePose {
   ObstacleShape shape;
   Eigen::Vector3d center;
   Eigen::Matrix3d rotation;
   double radius;
   Eigen::Vector3d half_extents, normal;
+  const MeshDistance* mesh = nullptr;  ///< mesh: the closest-point index of the spec's `mesh` (owned by it)
+  /// \throws ConfigError for a mesh obstacle without its geometry (`ObstacleSpec::mesh`).
   static ObstaclePose at(const ObstacleSpec& o, double t);
+  /// Signed distance (sphere, box, plane: analytic; mesh: contact/mesh_distance.hpp).
   Distance distance(const Eigen::Vector3d& x) const;
 };
 

@@ -247,6 +247,7 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
     if (o.shape == ObstacleShape::plane)
       c.require(o.normal.norm() > 1e-12, p + ".normal", fmt::format("[{}]", fmt::join(o.normal.data(), o.normal.data() + 3, ", ")),
                 "a nonzero vector");
+    if (o.shape == ObstacleShape::mesh) c.require(!o.file.empty(), p + ".file", "\"\"", "a path to an OBJ file when shape = mesh");
     c.require(o.motion.end >= o.motion.start, p + ".motion.end", o.motion.end, ">= motion.start");
   }
   errors.insert(errors.end(), c.violations().begin(), c.violations().end());
@@ -311,6 +312,15 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
                                              c, key)
                                : fmt::format("cloths.{}.material.{} is only read when model = orthotropic", c, key));
   }
+  // Obstacle keys the shape does not read.
+  for (size_t k = 0; k < scene.spec.obstacles.size(); ++k) {
+    const Json& oj = rest.at("obstacles").at(k);
+    const bool mesh = scene.spec.obstacles[k].shape == ObstacleShape::mesh;
+    for (const char* key : mesh ? std::vector<const char*>{"radius", "half_extents", "normal"} : std::vector<const char*>{"file", "scale"})
+      if (oj.contains(key))
+        errors.push_back(mesh ? fmt::format("obstacles.{}.{} is not read when shape = mesh (the OBJ file gives the surface)", k, key)
+                              : fmt::format("obstacles.{}.{} is only read when shape = mesh", k, key));
+  }
   validate_spec(scene.spec, errors);
   if (!errors.empty()) throw ConfigError(header, errors);
 
@@ -321,6 +331,19 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
       parts.push_back(make_mesh(scene.spec.cloths[c].mesh, base_dir));
     } catch (const ConfigError& e) {
       errors.push_back(fmt::format("cloths.{}.mesh: {}", c, e.what()));
+    }
+  }
+  // Mesh obstacles: read and checked once, shared by every copy of the spec.
+  for (size_t k = 0; k < scene.spec.obstacles.size(); ++k) {
+    ObstacleSpec& o = scene.spec.obstacles[k];
+    if (o.shape != ObstacleShape::mesh) continue;
+    const std::filesystem::path p = std::filesystem::path(o.file).is_absolute() ? std::filesystem::path(o.file)
+                                                                                 : std::filesystem::path(base_dir) / o.file;
+    try {
+      o.mesh = load_obstacle_mesh(p.lexically_normal().string(), o.scale, fmt::format("obstacles.{}.file = \"{}\"", k, o.file));
+    } catch (const ConfigError& e) {
+      if (e.violations().empty()) errors.emplace_back(e.what());
+      errors.insert(errors.end(), e.violations().begin(), e.violations().end());
     }
   }
   if (!errors.empty()) throw ConfigError(header, errors);

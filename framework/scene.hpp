@@ -9,10 +9,12 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "framework/obstacle_mesh.hpp"
 #include "framework/params.hpp"
 #include "framework/params_json.hpp"
 #include "framework/state.hpp"
@@ -251,27 +253,43 @@ struct ClothSpec {
   }
 };
 
-enum class ObstacleShape { sphere, box, plane };
-inline constexpr std::array<std::string_view, 3> obstacle_shape_names = {"sphere", "box", "plane"};
+enum class ObstacleShape { sphere, box, plane, mesh };
+inline constexpr std::array<std::string_view, 4> obstacle_shape_names = {"sphere", "box", "plane", "mesh"};
 
-/// An analytic, scripted obstacle.
+/// A scripted rigid obstacle: an analytic sphere, box or plane, or a triangle mesh read
+/// from an OBJ file. A mesh's body coordinates are the OBJ's, scaled by `scale` about the
+/// OBJ origin; `center` places that origin, and `motion` moves the body rigidly. The inside
+/// of a mesh is well defined when it is closed and its faces are counter-clockwise seen from
+/// outside; an open mesh has an inside only near its surface (framework/obstacle_mesh.hpp).
 struct ObstacleSpec {
   ObstacleShape shape = ObstacleShape::sphere;
   std::string name = "obstacle";
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();       ///< [m] sphere/box centre, a point on a plane
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();       ///< [m] sphere/box centre, a point on a plane, a mesh's OBJ origin
   double radius = 0.5;                                    ///< [m] sphere
   Eigen::Vector3d half_extents{0.5, 0.5, 0.5};            ///< [m] box
   Eigen::Vector3d normal{0, 0, 1};                        ///< plane normal (normalised on load)
+  std::string file;                                       ///< mesh: OBJ path, relative to the scene file
+  double scale = 1.0;                                     ///< mesh: uniform scale of the OBJ vertices, > 0
   double friction = 0.0;                                  ///< Coulomb coefficient
   Motion motion;
+  /// Mesh: the surface in body coordinates, loaded by `build_scene` (scenes built in code set
+  /// it with `load_obstacle_mesh` or `make_obstacle_mesh`); shared by copies of the spec.
+  std::shared_ptr<const ObstacleMesh> mesh;
   template <class V>
   void visit(V& v) {
-    v.choice("shape", shape, obstacle_shape_names, "obstacle shape", true);
+    v.choice("shape", shape, obstacle_shape_names, "obstacle shape: sphere, box, plane, or a triangle mesh from an OBJ file", true);
     v.field("name", name, {Unit::none, Range::any(), "name used in output files"});
-    v.field("center", center, {Unit::length, Range::any(), "sphere/box centre, or a point on the plane"});
+    v.field("center", center,
+            {Unit::length, Range::any(), "sphere/box centre, a point on the plane, or where a mesh's OBJ origin is placed"});
     v.field("radius", radius, {Unit::length, Range::gt(0), "sphere radius"});
     v.field("half_extents", half_extents, {Unit::length, Range::gt(0), "box half extents"});
     v.field("normal", normal, {Unit::none, Range::any(), "plane normal (nonzero; normalised)"});
+    v.field("file", file,
+            {Unit::none, Range::any(),
+             "mesh (required): OBJ file of the surface, relative to the scene file; closed with faces counter-clockwise seen "
+             "from outside for a well-defined inside (an open mesh has an inside only near its surface); no zero-area faces, "
+             "at most two faces per edge"});
+    v.field("scale", scale, {Unit::none, Range::gt(0), "mesh: uniform scale of the OBJ vertices about the OBJ origin"});
     v.field("friction", friction, {Unit::none, Range::ge(0), "Coulomb friction coefficient"});
     v.section("motion", motion);
   }
@@ -328,7 +346,7 @@ struct SceneSpec {
     v.field("combo", combo, {Unit::none, Range::any(), "pre-built combination of policies (`weft list`)"});
     v.field("description", description, {Unit::none, Range::any(), "free text"});
     v.list("cloths", cloths, "cloth sheets", 1);
-    v.list("obstacles", obstacles, "analytic obstacles");
+    v.list("obstacles", obstacles, "scripted rigid obstacles: analytic shapes or triangle meshes");
     v.field("gravity", gravity, {Unit::acceleration, Range::any(), "gravitational acceleration"});
     v.section("time", time);
     v.section("damping", damping);
