@@ -11,6 +11,7 @@
 #endif
 
 #include "apps/bench_bending.hpp"
+#include "apps/bench_contact.hpp"
 #include "apps/bench_linear.hpp"
 #include "apps/stability.hpp"
 #include "apps/runner.hpp"
@@ -100,6 +101,23 @@ int main(int argc, char** argv) {
   cmd_bench_linear->add_flag("--quick", bench_linear.quick, "reduced run: m = 30 (961 vertices), 2 steps");
   cmd_bench_linear->add_option("--threads", bench_linear.threads, "OpenMP threads (default: all)")->check(CLI::NonNegativeNumber);
 
+  app::BenchContactOptions bench_contact;
+  auto* cmd_bench_contact = cmd_bench->add_subcommand(
+      "contact", "cloth contact: seconds per step and the shares of detection, response and solve per resolution (issue 6)");
+  cmd_bench_contact->add_option("scene", bench_contact.scene, "scene file (default: the source tree's scenes/drape_sphere.json)");
+  cmd_bench_contact->add_option("overrides", bench_contact.overrides, "key=value overrides applied to every run");
+  cmd_bench_contact->add_option("--combo", bench_contact.combo, "combination (default: the scene's)");
+  cmd_bench_contact->add_option("--resolutions", bench_contact.resolutions,
+                                "cloths.0.mesh.resolution per run: n (n x n) or nxm, e.g. 41 81 or 51x21 (default: the scene's)");
+  cmd_bench_contact->add_flag("--drape", bench_contact.drape, "the thesis' 36 drape resolutions n = 11, 13, ..., 81");
+  cmd_bench_contact->add_option("--steps", bench_contact.steps, "counted steps per resolution (default: the scene's duration)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_contact->add_option("--skip", bench_contact.skip, "leading steps run but not counted (default 0)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_bench_contact->add_flag("--check", bench_contact.check, "exact cloth-cloth intersection check after every step (untimed)");
+  cmd_bench_contact->add_flag("--quick", bench_contact.quick, "reduced run: resolution 11 unless given, 4 steps");
+  cmd_bench_contact->add_option("--out", bench_contact.out_dir, "output directory (default: out/bench_contact)");
+
   app.footer("See README.md and docs/scene-reference.md.");
   try {
     app.parse(argc, argv);
@@ -140,6 +158,7 @@ int main(int argc, char** argv) {
   }
   if (*cmd_bench_bending) return app::bench_bending(bench_bending);
   if (*cmd_bench_linear) return app::bench_linear(bench_linear);
+  if (*cmd_bench_contact) return app::bench_contact(bench_contact);
   if (*cmd_stab) {
     if (!vary.empty()) {
       const auto eq = vary.find('=');

@@ -1,0 +1,92 @@
+// `weft bench contact --quick`: the table is printed, the CSV has its columns and one row per
+// resolution, the shares are fractions of the step time, and the exact intersection check
+// found nothing. A bad resolution is a configuration error (exit 2) before any work.
+#include <doctest/doctest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "cli_support.hpp"
+
+using namespace weft::test;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::string item;
+  std::stringstream ss(line);
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+}  // namespace
+
+TEST_SUITE("apps") {
+  TEST_CASE("bench: weft bench contact --quick writes one CSV row per resolution") {
+    const auto dir = temp_dir("bench_contact_" + std::to_string(getpid()));
+    // The dropHorizontal box at two tiny resolutions, dropped from 3 mm so that the four
+    // counted steps have obstacle contacts.
+    const Result r = run_weft(fmt::format("--threads 1 bench contact {}/scenes/drop_horizontal.json --quick --check "
+                                          "--resolutions 7 9 --skip 2 --out {} 'cloths.0.mesh.center=[0,0,0.003]'",
+                                          WEFT_SOURCE_DIR, dir.string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    for (const char* s : {"weft bench contact: drop_horizontal", "Hardware:", "| 7x7 | 49 |", "| 9x9 | 81 |", "detection",
+                          "counted steps 3..6"})
+      CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
+
+    std::stringstream csv(slurp(dir / "bench_contact.csv"));
+    std::string line;
+    REQUIRE(std::getline(csv, line));
+    const std::vector<std::string> header = split(line);
+    for (const char* col : {"scene", "combo", "resolution", "vertices", "steps", "seconds_per_step", "detection_share",
+                            "response_share", "solve_share", "contacts_per_step", "ccd_hits_per_step", "impact_zones_per_step",
+                            "newton_per_step", "linear_per_step", "intersections", "status"})
+      CHECK_MESSAGE(std::find(header.begin(), header.end(), col) != header.end(), col);
+    auto col = [&](const std::vector<std::string>& row, const std::string& name) {
+      const auto it = std::find(header.begin(), header.end(), name);
+      REQUIRE(it != header.end());
+      return row.at(it - header.begin());
+    };
+    int rows = 0;
+    while (std::getline(csv, line)) {
+      const std::vector<std::string> row = split(line);
+      CAPTURE(line);
+      REQUIRE(row.size() == header.size());
+      ++rows;
+      CHECK(col(row, "combo") == "cloth_ip_impulse_direct");
+      CHECK(col(row, "vertices") == (rows == 1 ? "49" : "81"));
+      CHECK(std::stoi(col(row, "steps")) == 4);
+      CHECK(std::stod(col(row, "seconds_per_step")) > 0);
+      double shares = 0;
+      for (const char* s : {"detection_share", "response_share", "solve_share"}) {
+        const double x = std::stod(col(row, s));
+        CHECK(x >= 0);
+        shares += x;
+      }
+      CHECK(shares > 0.3);
+      CHECK(shares <= 1.01);  // separately timed stages of sub-millisecond steps: clock granularity
+      CHECK(std::stod(col(row, "detection_share")) > 0);
+      CHECK(std::stod(col(row, "contacts_per_step")) > 0);
+      CHECK(std::stod(col(row, "newton_per_step")) >= 1);
+      CHECK(col(row, "intersections") == "0");
+      CHECK(col(row, "status") == "\"ok\"");
+    }
+    CHECK(rows == 2);
+    // One JSON line per step (2 skipped + 4 counted, two resolutions), per resolution, and the meta record.
+    const auto lines = read_jsonl(dir / "bench_contact.jsonl");
+    CHECK(lines.size() == 1 + 2 * (6 + 1));
+    CHECK(lines.front().at("record") == "meta");
+    fs::remove_all(dir);
+
+    const Result bad = run_weft(fmt::format("bench contact --quick --resolutions 7y --out {}", dir.string()));
+    CHECK(bad.code == 2);
+    CHECK(bad.output.find("--resolutions") != std::string::npos);
+    fs::remove_all(dir);
+  }
+}
