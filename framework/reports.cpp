@@ -105,6 +105,9 @@ Json to_json(const ContactReport& r) {
   put("solve_penetration", r.solve_penetration);
   put("springs", r.springs);
   put("pattern_updates", r.pattern_updates);
+  put("gs_sweeps", r.gs_sweeps);
+  put("gs_residual", r.gs_residual);
+  put("gs_unconverged", r.gs_unconverged);
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }

@@ -98,6 +98,10 @@ struct ContactReport {
   // Counters of the implicit contact strategy (contact/implicit_contact.hpp).
   int springs = 0;             ///< cloth-cloth repulsion springs of the step (pairs within the thickness at the start or the prediction)
   int pattern_updates = 0;     ///< 1 when the springs changed the matrix pattern this step (new symbolic analysis)
+  // Counters of the linear compliance strategy (contact/linear_compliance.hpp).
+  int gs_sweeps = 0;           ///< Gauss-Seidel sweeps of the contact solve
+  double gs_residual = 0;      ///< [m/s] largest Fischer-Burmeister residual at its end
+  int gs_unconverged = 0;      ///< 1 when the contact solve stopped at its sweep limit above the tolerance
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts
@@ -124,6 +128,9 @@ struct ContactReport {
     projected += end.projected;
     springs = std::max(springs, end.springs);
     pattern_updates += end.pattern_updates;
+    gs_sweeps += end.gs_sweeps;
+    gs_residual = std::max(gs_residual, end.gs_residual);
+    gs_unconverged += end.gs_unconverged;
     max_penetration = end.max_penetration;
     solve_penetration = std::max(solve_penetration, end.solve_penetration);
     return *this;

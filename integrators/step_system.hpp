@@ -174,7 +174,9 @@ class StepSystem final : public NewtonProblem {
         assemble(d, HessianMode::projected, 0.0);
         factorize();
       }
-      contact_.accept_system(SystemSolve{[this](const Eigen::VectorXd& rhs, Eigen::VectorXd& x) { return linear_.solve(rhs, x); },
+      // The solver, not this StepSystem: the system is a local of the step and is gone
+      // when the strategy's end_step uses the solve.
+      contact_.accept_system(SystemSolve{[&lin = linear_](const Eigen::VectorXd& rhs, Eigen::VectorXd& x) { return lin.solve(rhs, x); },
                                          &p_.matrix, p_.dt});
     }
   }

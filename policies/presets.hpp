@@ -4,6 +4,7 @@
 /// instantiated once, in its own translation unit under policies/combos/, and declared
 /// `extern template` here so no other file instantiates it again.
 #include "contact/impulse.hpp"
+#include "contact/linear_compliance.hpp"
 #include "contact/no_contact.hpp"
 #include "contact/implicit_contact.hpp"
 #include "contact/obstacle_penalty.hpp"
@@ -36,6 +37,7 @@ using ClothIpDirect = Simulator<ClothTheta, integrators::IncrementalPotential, c
 using ClothTanIpDirect = Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 using ClothIpPenaltyDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 using ClothIpImpulseDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::Direct>;
+using ClothIpComplianceDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::LinearCompliance, linear::Direct>;
 using ClothIpConstraintsDirect = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
 using ClothLieConstraintsDiagPcg = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
 using ClothIpConstraintsSaPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;
@@ -50,6 +52,7 @@ extern template class Simulator<ClothTheta, integrators::IncrementalPotential, c
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ObstaclePenalty, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::LinearCompliance, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;

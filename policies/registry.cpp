@@ -19,6 +19,8 @@
     "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)") \
   X(cloth_ip_impulse_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "impulse", "direct", "Bridson-style impulses after the solve: obstacles and self contact with friction, impact zones") \
+  X(cloth_ip_compliance_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
+    "linear_compliance", "direct", "linear compliance after the solve (D = A^-1): Gauss-Seidel over exact Coulomb contacts, impulse failsafe") \
   X(cloth_ip_constraints_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "implicit_contact", "direct", "contact inside the solve (BW98): obstacle equality constraints released when pulling with Coulomb friction, cloth-cloth repulsion springs, impulse failsafe") \
   X(cloth_lie_constraints_diag_pcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", \
@@ -65,7 +67,7 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
         return fmt::format("cloths.{}.material.model = orthotropic needs membrane(stvk, orthotropic)", c);
   if (combo.contact == "obstacle_penalty" && scene.spec.obstacles.empty())
     return "the scene has no obstacles: contact = obstacle_penalty would pay for a contact stage it does not use";
-  if ((combo.contact == "impulse" || combo.contact == "implicit_contact") &&
+  if ((combo.contact == "impulse" || combo.contact == "implicit_contact" || combo.contact == "linear_compliance") &&
       scene.spec.obstacles.empty()) {
     const Json* c = scene.solver.contains("contact") ? &scene.solver["contact"] : nullptr;
     if (c && c->is_object() && c->contains("self_contact") && (*c)["self_contact"] == false)

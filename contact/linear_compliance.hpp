@@ -1,0 +1,177 @@
+#pragma once
+/// \file linear_compliance.hpp
+/// `LinearCompliance`: contact response after the implicit solve through the compliance
+/// of the step's linear system, D = A^-1 with A = M~ + dt^2 K the last Newton matrix
+/// (spec 03 §8 (b), "linear compliance": Otaduy et al. 2009 / the thesis' chapter 9
+/// baseline), frictional contacts solved exactly on the smooth cone by Gauss-Seidel over
+/// single-contact Coulomb problems (contact_gauss_seidel.hpp, coulomb.hpp), with the
+/// `Impulse` pipeline (CCD impulses and rigid impact zones) as the failsafe. No potential
+/// terms (energy 0, like `Impulse`): the integrator advances the elastic dynamics alone.
+///
+/// Conventions (those of `Impulse`, impulse.hpp): x0 the start-of-step positions, v the
+/// step velocities, x1 = x0 + dt v; every correction changes v and moves x1 with it (fully
+/// inelastic, spec 02 §13). Pinned and scripted vertices have infinite mass: their columns
+/// of the contact Jacobian are zero, their motion enters the free velocity u_f.
+///
+/// Units. The backward Euler residual with a contact force F added is
+///     f(d) = M~ d - dt M v_k + dt^2 (grad V(q_k + d) - F),
+/// so, linearised at the accepted d (f = 0 there), a force F held over the step changes
+/// the displacement by Delta d = dt^2 A^-1 F, i.e. an impulse p = dt F changes the
+/// velocity v = d / dt by Delta v = A^-1 p. The compliance is thus D = A^-1 [1/kg]; with
+/// K = 0 and no damping it is M^-1, the compliance of `Impulse`. Responses r are impulses
+/// [N s] in each contact's local frame (normal first), u = H v relative velocities [m/s],
+/// W = H A^-1 H^T [1/kg], and the GS tolerance is a velocity (the FB residual with the
+/// impulse scaled by tr(W_kk) / 3).
+///
+/// Algorithm of `end_step`:
+///  1. Contacts at the end positions x1 (the integrator's result), in a fixed order:
+///     - obstacles: per free vertex i and obstacle, phi1 = phi(x1_i, t1) < h; frame from
+///       the end-of-step normal n1 (spec 02 §11.2); u_f = (-(h - phi1) / dt,
+///       t1 . (v_i - w), t2 . (v_i - w)), w the obstacle's velocity at the contact point;
+///       mu = the obstacle's `friction`. u_n >= 0 then means n1 . Delta v_i >=
+///       (h - phi1) / dt: the vertex ends at the thickness or beyond (to first order; exact
+///       on planes), as Impulse's obstacle impulse; the tangential velocity is relative.
+///     - cloth-cloth (`self_contact`): the proximity pairs within h at x1, filtered as in
+///       Impulse's repulsion stage (crossed during the step: left to CCD; material points
+///       closer than h at rest: no contact); weights gamma and normal n (B to A);
+///       u_f = ((s1 - h) / dt, T^T sum_j gamma_j v_j), s1 = n . sum_j gamma_j x1_j;
+///       mu = `cloth_friction`.
+///  2. H: three rows per contact, F_k^T sum_j gamma_j (e_j^T (x) I_3) over free stencil
+///     vertices (obstacle contacts: gamma = 1 on the vertex). W = H A^-1 H^T, formed
+///     column by column: 3m solves with A (rows of fixed vertices ignored).
+///  3. Gauss-Seidel over the contacts (DenseDelassus) to `tolerance` or `max_sweeps`.
+///  4. v += A^-1 H^T r (one more solve), x1 = x0 + dt v.
+///  5. The failsafe: `Impulse::end_step` on the result (obstacle crossings during the step,
+///     repulsion where the linearisation left a pair closer than h, CCD impulses, impact
+///     zones). It keeps Impulse's guarantees: no free vertex deeper than the thickness at
+///     an obstacle, no cloth-cloth intersection given an intersection-free start.
+/// A contact set with no accepted system (an integrator that does not call
+/// `accept_system`) falls back to D = M^-1: the impulse response on the same contacts.
+///
+/// Solves with A: `own_factorization` (default) factorises A again with a sparse LDL^T
+/// (exact, symmetric W whatever the step's solver); otherwise the step's own solver is
+/// used (`SystemSolve::solve`; an iterative solver makes W inexact and unsymmetric).
+/// Cost: one factorisation and 3m + 1 solves per step with contacts, plus W (9 m^2
+/// doubles): meant for small contact counts; the rods apply the compliance without
+/// forming W (contact_gauss_seidel.hpp, `ComplianceDelassus`).
+///
+/// Reports: `contacts` (obstacle + cloth contacts of the GS, plus the failsafe's CCD hits),
+/// `obstacle_contacts`, `proximity_contacts`, the failsafe's counters; the Gauss-Seidel
+/// statistics in `last_report()` (and in `message` when it did not converge).
+#include <Eigen/Core>
+
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "contact/contact_gauss_seidel.hpp"
+#include "contact/impulse.hpp"
+#include "framework/concepts.hpp"
+#include "framework/params.hpp"
+#include "framework/scene.hpp"
+
+namespace weft::contact {
+
+namespace detection {
+class CollisionDetector;
+}
+
+class LinearCompliance {
+ public:
+  static constexpr std::string_view name = "linear_compliance";
+  /// No potential terms (a zero potential, as `Impulse`): a minimising integrator may use it.
+  static constexpr bool provides_potential = true;
+
+  struct Params {
+    double thickness = 1e-3;       ///< h [m] > 0: distance kept to obstacles and between cloth layers
+    double cloth_friction = 0.0;   ///< Coulomb coefficient of cloth-cloth contacts, >= 0 (cloth-obstacle: each obstacle's `friction`)
+    double tolerance = 1e-6;       ///< [m/s] > 0: Gauss-Seidel stops when the max FB residual is below
+    int max_sweeps = 200;          ///< Gauss-Seidel sweeps, >= 1
+    bool own_factorization = true; ///< factorise A with a sparse LDL^T of its own (else the step's solver)
+    bool self_contact = true;      ///< cloth-cloth contact (in the GS, and the failsafe's CCD and zones)
+    int repulsion_sweeps = 2;      ///< failsafe: repulsion impulse sweeps, >= 0
+    int ccd_sweeps = 2;            ///< failsafe: CCD impulse sweeps before impact zones, >= 0
+    int max_zone_iterations = 100; ///< failsafe: impact-zone iterations before the step fails, >= 1
+    double eta = 1e-6;             ///< failsafe: CCD tolerance [m], in (0, thickness)
+    template <class V>
+    void visit(V& v) {
+      v.field("thickness", thickness,
+              {Unit::length, Range::gt(0), "contact thickness h: the distance kept to obstacles and between cloth layers"});
+      v.field("cloth_friction", cloth_friction,
+              {Unit::none, Range::ge(0), "Coulomb coefficient of cloth-cloth contacts (cloth-obstacle: obstacles.N.friction)"});
+      v.field("tolerance", tolerance,
+              {Unit::velocity, Range::gt(0), "Gauss-Seidel stops when the largest Fischer-Burmeister residual is below (a velocity)"});
+      v.field("max_sweeps", max_sweeps, {Unit::none, Range::closed(1, 1e6), "Gauss-Seidel sweeps at most"});
+      v.field("own_factorization", own_factorization,
+              {Unit::none, Range::any(), "factorise the step's matrix A again (sparse LDL^T) for the compliance, else solve with the step's linear solver"});
+      v.field("self_contact", self_contact, {Unit::none, Range::any(), "cloth-cloth contact: in the Gauss-Seidel solve, and CCD impulses and impact zones"});
+      v.field("repulsion_sweeps", repulsion_sweeps,
+              {Unit::none, Range::closed(0, 1000), "failsafe: Gauss-Seidel sweeps of repulsion impulses"});
+      v.field("ccd_sweeps", ccd_sweeps, {Unit::none, Range::closed(0, 1000), "failsafe: sweeps of CCD impulses before the impact zones"});
+      v.field("max_zone_iterations", max_zone_iterations,
+              {Unit::none, Range::closed(1, 1e6), "failsafe: impact-zone iterations before the step fails"});
+      v.field("eta", eta, {Unit::length, Range::gt(0), "failsafe: CCD tolerance, pairs closer than eta count as colliding (< thickness)"});
+    }
+    static Checker validate(const Params& p) {
+      Checker c("contact");
+      c.require(p.thickness > 0, "thickness", p.thickness, "> 0")
+          .require(p.cloth_friction >= 0, "cloth_friction", p.cloth_friction, ">= 0")
+          .require(p.tolerance > 0, "tolerance", p.tolerance, "> 0")
+          .require(p.max_sweeps >= 1, "max_sweeps", p.max_sweeps, ">= 1")
+          .require(p.repulsion_sweeps >= 0, "repulsion_sweeps", p.repulsion_sweeps, ">= 0")
+          .require(p.ccd_sweeps >= 0, "ccd_sweeps", p.ccd_sweeps, ">= 0")
+          .require(p.max_zone_iterations >= 1, "max_zone_iterations", p.max_zone_iterations, ">= 1")
+          .require(p.eta > 0 && p.eta < p.thickness, "eta", p.eta, "in (0, thickness)");
+      return c;
+    }
+  };
+
+  /// What the last `end_step` did (beyond ContactReport).
+  struct Report {
+    int obstacle_contacts = 0;  ///< vertex-obstacle contacts in the GS solve
+    int cloth_contacts = 0;     ///< cloth-cloth proximity contacts in the GS solve
+    GaussSeidelReport gauss_seidel;
+    int solves = 0;             ///< solves with the compliance (3m + 1)
+    bool compliance = false;    ///< D = A^-1 (false: no system accepted, D = M^-1)
+    double solve_penetration = 0;  ///< [m] largest h - phi over the obstacle contacts after the GS response, before the failsafe
+    std::vector<Eigen::Vector3d> responses;  ///< r_k, local frames (normal first) [N s]
+  };
+
+  /// \throws ConfigError for invalid parameters.
+  LinearCompliance(const Scene& scene, const Params& prm);
+  ~LinearCompliance();
+  LinearCompliance(LinearCompliance&&) noexcept;
+  LinearCompliance& operator=(LinearCompliance&&) noexcept;
+
+  void declare(AssemblyPlan&) {}
+  /// Keeps x0 and the time; starts the failsafe.
+  ContactReport begin_step(const State& s, double dt);
+  double energy(const State&) const { return 0.0; }
+  void add_gradient(const State&, Eigen::VectorXd&) const {}
+  void add_hessian(const State&, ElementBuffer&, HessianMode) const {}
+  /// The step's system (HasSystemCompliance): kept for `end_step`.
+  void accept_system(const SystemSolve& s);
+  /// The response on the integrator's end-of-step state (see the file comment).
+  ContactReport end_step(State& out, double dt);
+
+  const Params& params() const { return prm_; }
+  const Report& last_report() const { return report_; }
+
+ private:
+  Params prm_;
+  std::vector<ObstacleSpec> obstacles_;
+  Eigen::VectorXd rest_;
+  std::unique_ptr<detection::CollisionDetector> detector_;
+  std::unique_ptr<Impulse> failsafe_;
+  Eigen::VectorXd x0_;
+  double t0_ = 0;
+  bool started_ = false;
+  SystemSolve system_;
+  bool has_system_ = false;
+  Report report_;
+};
+
+static_assert(ContactStrategy<LinearCompliance>);
+static_assert(HasSystemCompliance<LinearCompliance>);
+
+}  // namespace weft::contact
