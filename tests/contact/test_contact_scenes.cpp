@@ -86,7 +86,16 @@ RunStats run_checked(AnySimulator& sim, double h, int max_steps, Each&& each) {
     const State& s = sim.state();
     REQUIRE(s.x.allFinite());
     REQUIRE(s.v.allFinite());
-    REQUIRE(contact::verify::check_self_intersections(s.x, scene.mesh.faces()).num_pairs == 0);
+    const contact::verify::IntersectionReport ix = contact::verify::check_self_intersections(s.x, scene.mesh.faces());
+    if (ix.num_pairs > 0) {  // which triangles, and whether they touch prescribed vertices
+      const Eigen::MatrixX3i& F = scene.mesh.faces();
+      for (const auto& p : ix.pairs)
+        MESSAGE("intersecting triangles " << p[0] << " (" << F.row(p[0]) << ") and " << p[1] << " (" << F.row(p[1])
+                                          << "), prescribed vertices: "
+                                          << (!s.is_free(F(p[0], 0)) + !s.is_free(F(p[0], 1)) + !s.is_free(F(p[0], 2))) << " and "
+                                          << (!s.is_free(F(p[1], 0)) + !s.is_free(F(p[1], 1)) + !s.is_free(F(p[1], 2))));
+    }
+    REQUIRE(ix.num_pairs == 0);
     for (int i = 0; i < s.num_vertices(); ++i) {
       if (!s.is_free(i)) continue;
       // A vertex within the thickness of two obstacles at once (the hole's corners of the
