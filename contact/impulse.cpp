@@ -252,7 +252,16 @@ struct Impulse::Step {
     if (p.impact.toi > 0) return false;
     const StencilContact c{p.v, p.impact.gamma, p.impact.normal, 0};
     const double s0 = separation(c, x0), s1 = separation(c, x1);
-    return s1 > 0 && s1 >= s0 - 1e-12 * h;
+    // The separation along the start normal at the start weights is not enough: when the
+    // triangle (or an edge) turns while the vertex slides, the pair can cross the moving
+    // plane with that separation unchanged (the twisted sheet did, at 1 um). So the four
+    // points must also keep their orientation: the signed volume of the stencil, zero
+    // exactly when the pair is coplanar, has the same sign at the end as at the start.
+    auto volume = [&](const Eigen::VectorXd& x) {
+      const Vector3d a = x.segment<3>(3 * p.v[0]);
+      return (x.segment<3>(3 * p.v[1]) - a).dot((x.segment<3>(3 * p.v[2]) - a).cross(x.segment<3>(3 * p.v[3]) - a));
+    };
+    return s1 > 0 && s1 >= s0 - 1e-12 * h && volume(x0) * volume(x1) > 0;
   }
 };
 

@@ -230,6 +230,44 @@ TEST_SUITE("contact") {
     }
   }
 
+  TEST_CASE("impulse cloth: a pair within eta at the start that turns through its plane is not taken as resolved") {
+    // A vertex 0.5 um (eta / 2) above the centroid q of a triangle: the triangle turns about
+    // an axis through q while the vertex slides along the slope. Its separation along the
+    // start normal (at the start weights) stays 0.5 um, yet it ends below the turned plane:
+    // the twisted sheet crossed this way. Repulsion is off so that only CCD can act.
+    const Scene scene = scene_of({sheet(0.1, 2, Vector3d(0, 0, 0), Vector3d::Zero()),
+                                  sheet(0.02, 2, Vector3d(0, 0, 0.05), Vector3d::Zero())});
+    Flight f(scene, {.thickness = 1e-3, .repulsion_sweeps = 0});
+    const Eigen::MatrixX3i& F = scene.mesh.faces();
+    const int lower_face = 0, up = scene.cloth_vertex_offset[1];
+    REQUIRE(F(lower_face, 0) < up);
+    Vector3d q = Vector3d::Zero();
+    for (int j = 0; j < 3; ++j) q += f.s.position(F(lower_face, j)) / 3;
+    const double dt = 0.004, w = 10, u = 1;  // the slope rises dt^2 w u = 160 um under the vertex
+    for (int i = 0; i < up; ++i) f.s.velocity(i) = Vector3d(w, 0, 0).cross(f.s.position(i) - q);
+    // The upper sheet: one corner at q + 0.5 um, the rest tilted up and away, sliding along y.
+    const Vector3d corner = q + Vector3d(0, 0, 5e-7);
+    const Vector3d shift = corner - f.s.position(up);
+    for (int i = up; i < f.s.num_vertices(); ++i) {
+      f.s.position(i) += shift + Vector3d(0, 0, 0.5 * (f.s.position(i) - f.s.position(up)).norm());
+      f.s.velocity(i) = Vector3d(0, u, 0);
+    }
+    f.s.position(up) = corner;
+    REQUIRE(intersections(scene, f.s.x) == 0);
+    const ContactReport r = f.step(dt);
+    REQUIRE_MESSAGE(r.status == Status::success, r.message);
+    auto side = [&](const Eigen::VectorXd& x) {  // the corner's signed distance to the lower triangle's plane
+      const Vector3d a = x.segment<3>(3 * F(lower_face, 0)), b = x.segment<3>(3 * F(lower_face, 1)),
+                     c = x.segment<3>(3 * F(lower_face, 2));
+      const Vector3d n = (b - a).cross(c - a).normalized();
+      return n.dot(x.segment<3>(3 * up) - a) * (n.z() > 0 ? 1 : -1);
+    };
+    CHECK(side(f.x1_free) < 0);  // free flight crosses: the case is not vacuous
+    CHECK(r.ccd_hits > 0);
+    CHECK(side(f.s.x) > 0);
+    CHECK(intersections(scene, f.s.x) == 0);
+  }
+
   TEST_CASE("impulse cloth: the impact-zone failsafe stops at its iteration cap with a failing report") {
     // A fast sheet (2) hits a large resting sheet (1): the first zone drags the triangles of
     // sheet 1 it crossed along, and those reach beyond sheet 2 into a third sheet resting
