@@ -19,22 +19,10 @@ namespace {
 
 ObstacleConstraints::Params obstacle_params(const ImplicitContact::Params& p) {
   ObstacleConstraints::Params o;
-  o.thickness = p.thickness;
+  o.thickness = p.impulse.thickness;
   o.margin = p.margin;
   o.projection_tolerance = p.projection_tolerance;
   return o;
-}
-
-Impulse::Params failsafe_params(const ImplicitContact::Params& p) {
-  Impulse::Params i;
-  i.thickness = p.thickness;
-  i.cloth_friction = p.cloth_friction;
-  i.repulsion_sweeps = p.repulsion_sweeps;
-  i.ccd_sweeps = p.ccd_sweeps;
-  i.max_zone_iterations = p.max_zone_iterations;
-  i.eta = p.eta;
-  i.self_contact = true;
-  return i;
 }
 
 Vector3d at(const Eigen::VectorXd& x, int i) { return x.segment<3>(3 * i); }
@@ -51,10 +39,10 @@ ImplicitContact::ImplicitContact(const Scene& scene, const Params& prm)
     : prm_(prm), obstacles_(scene, (Params::validate(prm).throw_if_failed(fmt::format("{}: invalid contact configuration:", scene.path)),
                                     obstacle_params(prm))) {
   has_obstacles_ = !scene.spec.obstacles.empty();
-  if (prm_.self_contact && scene.mesh.num_faces() > 0) {
-    failsafe_ = std::make_unique<Impulse>(scene, failsafe_params(prm_));
+  if (prm_.impulse.self_contact && scene.mesh.num_faces() > 0) {
+    failsafe_ = std::make_unique<Impulse>(scene, prm_.impulse);
     detection::CollisionDetectorParams d;
-    d.margin = 0.5 * prm_.thickness;
+    d.margin = 0.5 * prm_.impulse.thickness;
     d.self_contact = true;
     d.proximity.edge_edge_interior_only = true;  // endpoint pairs are found as vertex-triangle pairs
     detector_ = std::make_unique<detection::CollisionDetector>(scene.mesh, d);
@@ -79,7 +67,7 @@ ContactReport ImplicitContact::begin_step(const State& s, double dt) {
   failsafe_->begin_step(s, dt);
 
   // Pairs within h at the start or at the prediction, keyed by kind and primitives.
-  const double h = prm_.thickness;
+  const double h = prm_.impulse.thickness;
   Eigen::VectorXd xp = s.x + dt * s.v;
   std::map<std::tuple<int, int, int>, detection::ProximityPair> found;
   {
@@ -132,7 +120,7 @@ bool ImplicitContact::update_pattern(AssemblyPlan& plan) {
 double ImplicitContact::energy(const State& s) const {
   double e = obstacles_.energy(s);
   for (const Spring& sp : springs_) {
-    const double c = std::min(sp.gap(s.x, prm_.thickness), 0.0);
+    const double c = std::min(sp.gap(s.x, prm_.impulse.thickness), 0.0);
     e += 0.5 * sp.stiffness * c * c;
   }
   return e;
@@ -141,7 +129,7 @@ double ImplicitContact::energy(const State& s) const {
 void ImplicitContact::add_gradient(const State& s, Eigen::VectorXd& g) const {
   obstacles_.add_gradient(s, g);
   for (const Spring& sp : springs_) {
-    const double c = sp.gap(s.x, prm_.thickness);
+    const double c = sp.gap(s.x, prm_.impulse.thickness);
     if (c >= 0) continue;
     for (int j = 0; j < 4; ++j) g.segment<3>(3 * sp.v[j]) += sp.stiffness * c * sp.gamma[j] * sp.normal;
   }
@@ -153,7 +141,7 @@ void ImplicitContact::add_hessian(const State& s, ElementBuffer& buf, HessianMod
   // The spring Hessians are positive semidefinite: the same in every mode.
   buf.for_each(group_, [&](int e) {
     const Spring& sp = springs_[e];
-    const bool active = sp.gap(s.x, prm_.thickness) < 0;
+    const bool active = sp.gap(s.x, prm_.impulse.thickness) < 0;
     if (!active && buf.mode() == AssemblyMode::direct) return;  // contributes nothing
     const Eigen::Matrix3d nn = active ? Eigen::Matrix3d(sp.stiffness * sp.normal * sp.normal.transpose())
                                       : Eigen::Matrix3d::Zero();  // stored mode keeps old values otherwise

@@ -61,47 +61,27 @@ class ImplicitContact {
   static constexpr bool provides_potential = true;  ///< the springs and the kinetic friction are potential terms
 
   struct Params {
-    double thickness = 2e-3;            ///< h [m] > 0: kept to obstacles and between cloth layers
+    /// Thickness, self contact, cloth friction and the failsafe: the `impulse` fields, in
+    /// the same section (the failsafe is an `Impulse` with these parameters).
+    Impulse::Params impulse{.thickness = 2e-3};
     double margin = 1e-8;               ///< [m] >= 0: obstacle contacts start within thickness + margin
     double projection_tolerance = 1e-9; ///< [m] >= 0: depth below h left alone by the obstacle projection
-    bool self_contact = true;           ///< cloth-cloth springs and the failsafe
     double spring_stiffness = 100;      ///< s > 0: spring stiffness k = s m_eff / dt^2
-    double cloth_friction = 0.0;        ///< Coulomb coefficient of cloth-cloth contacts (failsafe impulses), >= 0
-    int repulsion_sweeps = 2;           ///< failsafe: repulsion impulse sweeps, >= 0
-    int ccd_sweeps = 2;                 ///< failsafe: CCD impulse sweeps before impact zones, >= 0
-    int max_zone_iterations = 100;      ///< failsafe: impact-zone iterations before the step fails, >= 1
-    double eta = 1e-6;                  ///< failsafe: CCD tolerance [m], in (0, thickness)
     template <class V>
     void visit(V& v) {
-      v.field("thickness", thickness,
-              {Unit::length, Range::gt(0), "contact thickness h: the distance kept to obstacles and between cloth layers"});
+      impulse.visit(v);
       v.field("margin", margin,
               {Unit::length, Range::ge(0), "an obstacle contact starts when the start or predicted position is within thickness + margin"});
       v.field("projection_tolerance", projection_tolerance,
               {Unit::length, Range::ge(0), "after the solve, vertices deeper than this below an obstacle's thickness surface are projected onto it"});
-      v.field("self_contact", self_contact, {Unit::none, Range::any(), "cloth-cloth contact: repulsion springs in the solve and the impulse failsafe"});
       v.field("spring_stiffness", spring_stiffness,
-              {Unit::none, Range::gt(0), "repulsion spring stiffness s: k = s m_eff / dt^2 (a predicted violation shrinks to 1 / (1 + s))"});
-      v.field("cloth_friction", cloth_friction,
-              {Unit::none, Range::ge(0), "Coulomb coefficient of cloth-cloth contacts (cloth-obstacle: obstacles.N.friction)"});
-      v.field("repulsion_sweeps", repulsion_sweeps,
-              {Unit::none, Range::closed(0, 1000), "failsafe: Gauss-Seidel sweeps of repulsion impulses"});
-      v.field("ccd_sweeps", ccd_sweeps, {Unit::none, Range::closed(0, 1000), "failsafe: sweeps of CCD impulses before the impact zones"});
-      v.field("max_zone_iterations", max_zone_iterations,
-              {Unit::none, Range::closed(1, 1e6), "failsafe: impact-zone iterations before the step fails"});
-      v.field("eta", eta, {Unit::length, Range::gt(0), "failsafe: CCD tolerance, pairs closer than eta count as colliding (< thickness)"});
+              {Unit::none, Range::gt(0), "cloth-cloth repulsion springs: k = s m_eff / dt^2 (a predicted violation shrinks to 1 / (1 + s))"});
     }
     static Checker validate(const Params& p) {
-      Checker c("contact");
-      c.require(p.thickness > 0, "thickness", p.thickness, "> 0")
-          .require(p.margin >= 0, "margin", p.margin, ">= 0")
+      Checker c = Impulse::Params::validate(p.impulse);
+      c.require(p.margin >= 0, "margin", p.margin, ">= 0")
           .require(p.projection_tolerance >= 0, "projection_tolerance", p.projection_tolerance, ">= 0")
-          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0")
-          .require(p.cloth_friction >= 0, "cloth_friction", p.cloth_friction, ">= 0")
-          .require(p.repulsion_sweeps >= 0, "repulsion_sweeps", p.repulsion_sweeps, ">= 0")
-          .require(p.ccd_sweeps >= 0, "ccd_sweeps", p.ccd_sweeps, ">= 0")
-          .require(p.max_zone_iterations >= 1, "max_zone_iterations", p.max_zone_iterations, ">= 1")
-          .require(p.eta > 0 && p.eta < p.thickness, "eta", p.eta, "in (0, thickness)");
+          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0");
       return c;
     }
   };

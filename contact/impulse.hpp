@@ -136,7 +136,7 @@ class Impulse {
       v.field("max_zone_iterations", max_zone_iterations,
               {Unit::none, Range::closed(1, 1e6), "impact-zone iterations before the step fails"});
       v.field("eta", eta, {Unit::length, Range::gt(0), "CCD tolerance: pairs closer than eta count as colliding (< thickness)"});
-      v.field("self_contact", self_contact, {Unit::none, Range::any(), "cloth-cloth contact: repulsion, CCD impulses, impact zones"});
+      v.field("self_contact", self_contact, {Unit::none, Range::any(), "cloth-cloth contact (off: obstacles only)"});
     }
     static Checker validate(const Params& p) {
       Checker c("contact");

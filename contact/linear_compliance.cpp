@@ -18,18 +18,6 @@ using Eigen::Vector3d;
 
 namespace {
 
-Impulse::Params failsafe_params(const LinearCompliance::Params& p) {
-  Impulse::Params i;
-  i.thickness = p.thickness;
-  i.cloth_friction = p.cloth_friction;
-  i.repulsion_sweeps = p.repulsion_sweeps;
-  i.ccd_sweeps = p.ccd_sweeps;
-  i.max_zone_iterations = p.max_zone_iterations;
-  i.eta = p.eta;
-  i.self_contact = p.self_contact;
-  return i;
-}
-
 /// One contact of the GS solve: stencil (count vertices; -1 for fixed ones, which have no
 /// column in H), weights, frame (rows: normal, tangent, tangent), free velocity, mu.
 struct Row {
@@ -57,12 +45,12 @@ Matrix3d frame_of(const Vector3d& n) {
 
 LinearCompliance::LinearCompliance(const Scene& scene, const Params& prm) : prm_(prm), obstacles_(scene.spec.obstacles) {
   Params::validate(prm_).throw_if_failed(fmt::format("{}: invalid contact configuration:", scene.path));
-  failsafe_ = std::make_unique<Impulse>(scene, failsafe_params(prm_));
+  failsafe_ = std::make_unique<Impulse>(scene, prm_.impulse);
   rest_.resize(3 * scene.mesh.num_vertices());
   for (int i = 0; i < scene.mesh.num_vertices(); ++i) rest_.segment<3>(3 * i) = scene.mesh.rest().row(i).transpose();
-  if (prm_.self_contact && scene.mesh.num_faces() > 0) {
+  if (prm_.impulse.self_contact && scene.mesh.num_faces() > 0) {
     detection::CollisionDetectorParams d;
-    d.margin = 0.5 * prm_.thickness;
+    d.margin = 0.5 * prm_.impulse.thickness;
     d.self_contact = true;
     d.proximity.edge_edge_interior_only = true;  // endpoint pairs are found as vertex-triangle pairs
     detector_ = std::make_unique<detection::CollisionDetector>(scene.mesh, d);
@@ -98,7 +86,7 @@ ContactReport LinearCompliance::end_step(State& out, double dt) {
     return rep;
   }
   started_ = false;
-  const double h = prm_.thickness;
+  const double h = prm_.impulse.thickness;
   Eigen::VectorXd& v = out.v;
   const Eigen::VectorXd x1 = out.x;
 
@@ -159,7 +147,7 @@ ContactReport LinearCompliance::end_step(State& out, double dt) {
       r.frame = frame_of(nrm);
       r.free_velocity = r.frame * gv;
       r.free_velocity[0] = (nrm.dot(g1) - h) / dt;
-      r.mu = prm_.cloth_friction;
+      r.mu = prm_.impulse.cloth_friction;
       rows.push_back(r);
     }
   }

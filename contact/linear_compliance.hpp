@@ -83,45 +83,25 @@ class LinearCompliance {
   static constexpr bool provides_potential = true;
 
   struct Params {
-    double thickness = 1e-3;       ///< h [m] > 0: distance kept to obstacles and between cloth layers
-    double cloth_friction = 0.0;   ///< Coulomb coefficient of cloth-cloth contacts, >= 0 (cloth-obstacle: each obstacle's `friction`)
+    /// Thickness, self contact, cloth friction and the failsafe: the `impulse` fields, in
+    /// the same section (the failsafe is an `Impulse` with these parameters; with D = M^-1
+    /// this strategy reproduces it).
+    Impulse::Params impulse;
     double tolerance = 1e-6;       ///< [m/s] > 0: Gauss-Seidel stops when the max FB residual is below
     int max_sweeps = 200;          ///< Gauss-Seidel sweeps, >= 1
     bool own_factorization = true; ///< factorise A with a sparse LDL^T of its own (else the step's solver)
-    bool self_contact = true;      ///< cloth-cloth contact (in the GS, and the failsafe's CCD and zones)
-    int repulsion_sweeps = 2;      ///< failsafe: repulsion impulse sweeps, >= 0
-    int ccd_sweeps = 2;            ///< failsafe: CCD impulse sweeps before impact zones, >= 0
-    int max_zone_iterations = 100; ///< failsafe: impact-zone iterations before the step fails, >= 1
-    double eta = 1e-6;             ///< failsafe: CCD tolerance [m], in (0, thickness)
     template <class V>
     void visit(V& v) {
-      v.field("thickness", thickness,
-              {Unit::length, Range::gt(0), "contact thickness h: the distance kept to obstacles and between cloth layers"});
-      v.field("cloth_friction", cloth_friction,
-              {Unit::none, Range::ge(0), "Coulomb coefficient of cloth-cloth contacts (cloth-obstacle: obstacles.N.friction)"});
+      impulse.visit(v);
       v.field("tolerance", tolerance,
               {Unit::velocity, Range::gt(0), "Gauss-Seidel stops when the largest Fischer-Burmeister residual is below (a velocity)"});
       v.field("max_sweeps", max_sweeps, {Unit::none, Range::closed(1, 1e6), "Gauss-Seidel sweeps at most"});
       v.field("own_factorization", own_factorization,
               {Unit::none, Range::any(), "factorise the step's matrix A again (sparse LDL^T) for the compliance, else solve with the step's linear solver"});
-      v.field("self_contact", self_contact, {Unit::none, Range::any(), "cloth-cloth contact: in the Gauss-Seidel solve, and CCD impulses and impact zones"});
-      v.field("repulsion_sweeps", repulsion_sweeps,
-              {Unit::none, Range::closed(0, 1000), "failsafe: Gauss-Seidel sweeps of repulsion impulses"});
-      v.field("ccd_sweeps", ccd_sweeps, {Unit::none, Range::closed(0, 1000), "failsafe: sweeps of CCD impulses before the impact zones"});
-      v.field("max_zone_iterations", max_zone_iterations,
-              {Unit::none, Range::closed(1, 1e6), "failsafe: impact-zone iterations before the step fails"});
-      v.field("eta", eta, {Unit::length, Range::gt(0), "failsafe: CCD tolerance, pairs closer than eta count as colliding (< thickness)"});
     }
     static Checker validate(const Params& p) {
-      Checker c("contact");
-      c.require(p.thickness > 0, "thickness", p.thickness, "> 0")
-          .require(p.cloth_friction >= 0, "cloth_friction", p.cloth_friction, ">= 0")
-          .require(p.tolerance > 0, "tolerance", p.tolerance, "> 0")
-          .require(p.max_sweeps >= 1, "max_sweeps", p.max_sweeps, ">= 1")
-          .require(p.repulsion_sweeps >= 0, "repulsion_sweeps", p.repulsion_sweeps, ">= 0")
-          .require(p.ccd_sweeps >= 0, "ccd_sweeps", p.ccd_sweeps, ">= 0")
-          .require(p.max_zone_iterations >= 1, "max_zone_iterations", p.max_zone_iterations, ">= 1")
-          .require(p.eta > 0 && p.eta < p.thickness, "eta", p.eta, "in (0, thickness)");
+      Checker c = Impulse::Params::validate(p.impulse);
+      c.require(p.tolerance > 0, "tolerance", p.tolerance, "> 0").require(p.max_sweeps >= 1, "max_sweeps", p.max_sweeps, ">= 1");
       return c;
     }
   };

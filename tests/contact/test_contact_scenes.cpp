@@ -20,12 +20,14 @@
 #include <omp.h>
 #endif
 
+#include "../support/cloth_scenes.hpp"
 #include "contact/verify/intersection_check.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
 
 using namespace weft;
 using Eigen::Vector3d;
+using support::below;
 
 namespace {
 
@@ -136,29 +138,6 @@ double contact_thickness(const AnySimulator& sim) { return sim.params().at("cont
 
 /// Vertex range [begin, end) of cloth c.
 std::pair<int, int> cloth_range(const Scene& scene, int c) { return {scene.cloth_vertex_offset[c], scene.cloth_vertex_offset[c + 1]}; }
-
-/// How many vertices of [b0, b1) lie below the surface of cloth faces with vertices in
-/// [a0, a1) (a sheet that is a height field over the xy plane), among those above them.
-int below(const Scene& scene, const Eigen::VectorXd& x, int a0, int a1, int b0, int b1, int* over = nullptr) {
-  int count = 0, seen = 0;
-  const Eigen::MatrixX3i& F = scene.mesh.faces();
-  for (int i = b0; i < b1; ++i) {
-    const Vector3d p = x.segment<3>(3 * i);
-    for (int f = 0; f < F.rows(); ++f) {
-      if (F(f, 0) < a0 || F(f, 0) >= a1) continue;
-      const Vector3d a = x.segment<3>(3 * F(f, 0)), b = x.segment<3>(3 * F(f, 1)), c = x.segment<3>(3 * F(f, 2));
-      const double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
-      const double u = ((p.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (p.y() - a.y())) / det;
-      const double w = ((b.x() - a.x()) * (p.y() - a.y()) - (p.x() - a.x()) * (b.y() - a.y())) / det;
-      if (u < 0 || w < 0 || u + w > 1) continue;
-      ++seen;
-      if (p.z() < a.z() + u * (b.z() - a.z()) + w * (c.z() - a.z())) ++count;
-      break;
-    }
-  }
-  if (over) *over = seen;
-  return count;
-}
 
 /// Rotation angle about +x of the segment between two vertices, from their rest direction.
 double angle_about_x(const Vector3d& rest_dir, const Vector3d& dir) {

@@ -10,37 +10,21 @@
 #include <random>
 #include <string>
 
+#include "../support/cloth_scenes.hpp"
 #include "../support/fd.hpp"
 #include "contact/implicit_contact.hpp"
-#include "contact/verify/intersection_check.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
 
 using namespace weft;
 using Eigen::Vector3d;
+using support::intersections;
+using support::sheet;
 
 namespace {
 
-std::int64_t intersections(const Scene& scene, const Eigen::VectorXd& x) {
-  return contact::verify::check_self_intersections(x, scene.mesh.faces()).num_pairs;
-}
-
-Json sheet(double size, int n, const Vector3d& c, const Vector3d& v, bool irregular = false) {
-  Json j = Json::parse(R"({"mesh": {"source": "rectangle"}, "material": {"density": 0.1, "youngs_modulus": 1e7, "thickness": 5e-4}})");
-  j["mesh"]["size"] = {size, size};
-  j["mesh"]["resolution"] = {n, n};
-  j["mesh"]["center"] = {c.x(), c.y(), c.z()};
-  j["mesh"]["tessellation"] = irregular ? "irregular" : "regular";
-  j["initial_velocity"] = {v.x(), v.y(), v.z()};
-  return j;
-}
-
 Scene scene_of(const std::vector<Json>& cloths, const std::string& combo, const std::string& extra = "{}") {
-  Json doc = Json::parse(R"({"time": {"dt": 0.004166666666666667, "duration": 1.0, "frame_rate": 24}})");
-  doc["combo"] = combo;
-  doc["cloths"] = cloths;
-  doc.merge_patch(Json::parse(extra));
-  return build_scene(doc, ".", "test");
+  return support::cloth_scene(cloths, combo, extra);
 }
 
 }  // namespace
@@ -54,7 +38,7 @@ TEST_SUITE("contact") {
                                   sheet(0.08, 4, Vector3d(0.003, 0.002, 3 * h), Vector3d(0, 0, -0.5), true)},
                                  "cloth_ip_constraints_direct");
     contact::ImplicitContact::Params prm;
-    prm.thickness = h;
+    prm.impulse.thickness = h;
     contact::ImplicitContact c(scene, prm);
     State s = scene.initial_state();  // apart at rest (3 h), 0.6 h apart now
     for (int i = scene.cloth_vertex_offset[1]; i < s.num_vertices(); ++i) s.position(i).z() -= 2.4 * h;

@@ -15,15 +15,18 @@
 #include <omp.h>
 #endif
 
+#include "../support/cloth_scenes.hpp"
 #include "contact/impulse.hpp"
 #include "contact/impulse_kernels.hpp"
-#include "contact/verify/intersection_check.hpp"
 #include "framework/scene.hpp"
 #include "policies/presets.hpp"
 #include "policies/registry.hpp"
 
 using namespace weft;
 using Eigen::Vector3d;
+using support::below;
+using support::intersections;
+using support::sheet;
 
 namespace {
 
@@ -37,47 +40,8 @@ std::pair<Vector3d, Vector3d> momenta(const Eigen::VectorXd& x0, const State& s)
   return {p, l};
 }
 
-/// How many vertices of [b0, b1) lie below the surface of the vertices [a0, a1) (a sheet
-/// that stays a height field over the xy plane), among those above its triangles.
-int below(const Scene& scene, const Eigen::VectorXd& x, int a0, int a1, int b0, int b1) {
-  int count = 0;
-  const Eigen::MatrixX3i& F = scene.mesh.faces();
-  for (int i = b0; i < b1; ++i) {
-    const Vector3d p = x.segment<3>(3 * i);
-    for (int f = 0; f < F.rows(); ++f) {
-      if (F(f, 0) < a0 || F(f, 0) >= a1) continue;
-      const Vector3d a = x.segment<3>(3 * F(f, 0)), b = x.segment<3>(3 * F(f, 1)), c = x.segment<3>(3 * F(f, 2));
-      const double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
-      const double u = ((p.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (p.y() - a.y())) / det;
-      const double w = ((b.x() - a.x()) * (p.y() - a.y()) - (p.x() - a.x()) * (b.y() - a.y())) / det;
-      if (u < 0 || w < 0 || u + w > 1) continue;
-      if (p.z() < a.z() + u * (b.z() - a.z()) + w * (c.z() - a.z())) ++count;
-      break;
-    }
-  }
-  return count;
-}
-
-std::int64_t intersections(const Scene& scene, const Eigen::VectorXd& x) {
-  return contact::verify::check_self_intersections(x, scene.mesh.faces()).num_pairs;
-}
-
-/// A sheet of the scene JSON: size, resolution, centre, initial velocity.
-Json sheet(double size, int n, const Vector3d& c, const Vector3d& v, bool irregular = false) {
-  Json j = Json::parse(R"({"mesh": {"source": "rectangle"}, "material": {"density": 0.1, "youngs_modulus": 1e7, "thickness": 5e-4}})");
-  j["mesh"]["size"] = {size, size};
-  j["mesh"]["resolution"] = {n, n};
-  j["mesh"]["center"] = {c.x(), c.y(), c.z()};
-  j["mesh"]["tessellation"] = irregular ? "irregular" : "regular";
-  j["initial_velocity"] = {v.x(), v.y(), v.z()};
-  return j;
-}
-
 Scene scene_of(const std::vector<Json>& cloths, const std::string& extra = "{}") {
-  Json doc = Json::parse(R"({"combo": "cloth_ip_impulse_direct", "time": {"dt": 0.004166666666666667, "duration": 1.0, "frame_rate": 24}})");
-  doc["cloths"] = cloths;
-  doc.merge_patch(Json::parse(extra));
-  return build_scene(doc, ".", "test");
+  return support::cloth_scene(cloths, "cloth_ip_impulse_direct", extra);
 }
 
 /// Free flight of every vertex (no elasticity; without gravity momentum is conserved by

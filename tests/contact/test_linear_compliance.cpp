@@ -10,9 +10,9 @@
 #include <cmath>
 #include <string>
 
+#include "../support/cloth_scenes.hpp"
 #include "contact/impulse.hpp"
 #include "contact/linear_compliance.hpp"
-#include "contact/verify/intersection_check.hpp"
 #include "framework/params_json.hpp"
 #include "framework/scene.hpp"
 #include "policies/presets.hpp"
@@ -20,6 +20,7 @@
 
 using namespace weft;
 using Eigen::Vector3d;
+using support::sheet;
 
 namespace {
 
@@ -54,22 +55,8 @@ void check_solve(double tolerance) {
   CHECK(g.failed == 0);
 }
 
-Json sheet(double size, int n, const Vector3d& c, const Vector3d& v, bool irregular = false) {
-  Json j = Json::parse(R"({"mesh": {"source": "rectangle"}, "material": {"density": 0.1, "youngs_modulus": 1e7, "thickness": 5e-4}})");
-  j["mesh"]["size"] = {size, size};
-  j["mesh"]["resolution"] = {n, n};
-  j["mesh"]["center"] = {c.x(), c.y(), c.z()};
-  j["mesh"]["tessellation"] = irregular ? "irregular" : "regular";
-  j["initial_velocity"] = {v.x(), v.y(), v.z()};
-  return j;
-}
-
 Scene scene_of(const std::vector<Json>& cloths, const std::string& extra, const char* combo = "cloth_ip_compliance_direct") {
-  Json doc = Json::parse(R"({"time": {"dt": 0.004166666666666667, "duration": 1.0, "frame_rate": 24}})");
-  doc["combo"] = combo;
-  doc["cloths"] = cloths;
-  doc.merge_patch(Json::parse(extra));
-  return build_scene(doc, ".", "test");
+  return support::cloth_scene(cloths, combo, extra);
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
@@ -280,7 +267,7 @@ TEST_SUITE("slow") {
       const StepReport r = sim->step();
       REQUIRE_MESSAGE(r.ok(), r.message);
       CAPTURE(k);
-      REQUIRE(contact::verify::check_self_intersections(sim->state().x, scene.mesh.faces()).num_pairs == 0);
+      REQUIRE(support::intersections(scene, sim->state().x) == 0);
       cloth_contacts += Probe::last.cloth_contacts;
       if (Probe::last.gauss_seidel.contacts > 0) {
         ++solves;
