@@ -37,22 +37,48 @@ struct StageTimes {
   }
 };
 
-/// Adds the lifetime of the scope to one stage.
+/// Adds the lifetime of the scope to one stage, or to a plain accumulator.
+///
+/// Stage timers are exclusive: a stage timer opened inside another one on the same thread
+/// (the energy evaluations of a line search, say) is charged to its own stage only and is
+/// taken out of the enclosing stage, so the stages of a step are disjoint and their sum never
+/// exceeds the step's wall time. Plain accumulators (`ScopedTimer(double&)`, the detection
+/// and response seconds of a contact report) measure their scope inclusively and take no part
+/// in the nesting.
 class ScopedTimer {
  public:
   ScopedTimer(StageTimes& times, Stage stage)
-      : target_(&times[stage]), start_(std::chrono::steady_clock::now()) {}
+      : target_(&times[stage]), start_(std::chrono::steady_clock::now()), parent_(current()), nested_(true) {
+    current() = this;
+  }
   explicit ScopedTimer(double& target) : target_(&target), start_(std::chrono::steady_clock::now()) {}
-  ~ScopedTimer() { *target_ += elapsed(); }
+  ~ScopedTimer() {
+    const double t = elapsed();
+    if (!nested_) {
+      *target_ += t;
+      return;
+    }
+    *target_ += t - children_;
+    if (parent_) parent_->children_ += t;
+    current() = parent_;
+  }
   ScopedTimer(const ScopedTimer&) = delete;
   ScopedTimer& operator=(const ScopedTimer&) = delete;
+  /// Inclusive time since the scope opened [s].
   double elapsed() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
 
  private:
+  static ScopedTimer*& current() {
+    thread_local ScopedTimer* open = nullptr;
+    return open;
+  }
   double* target_;
   std::chrono::steady_clock::time_point start_;
+  ScopedTimer* parent_ = nullptr;
+  double children_ = 0;
+  bool nested_ = false;
 };
 
 }  // namespace weft
