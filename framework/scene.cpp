@@ -213,6 +213,7 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
     c.require(std::abs(ratio - std::round(ratio)) <= 1e-6 * ratio, "time.dt", s.time.dt,
               fmt::format("divides the frame interval {} s (e.g. {} or {} s)", frame, frame / std::floor(ratio),
                           frame / std::ceil(ratio)));
+  if (s.cloths.empty() && s.rods.empty()) c.fail("cloths, rods: a scene needs at least one cloth or one rod family");
   c.require(s.time.duration >= s.time.dt, "time.duration", s.time.duration, fmt::format(">= time.dt = {} s", s.time.dt));
   for (size_t k = 0; k < s.cloths.size(); ++k) {
     const auto& cl = s.cloths[k];
@@ -361,10 +362,15 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
     scene.cloth_face_offset.push_back(f0 + static_cast<int>(parts[c].F.rows()));
     scene.face_cloth.insert(scene.face_cloth.end(), parts[c].F.rows(), static_cast<int>(c));
   }
+  if (nv > 0) try {
+      scene.mesh = TriangleMesh(V, F);
+    } catch (const ConfigError& e) {
+      throw ConfigError(header, {e.what()});
+    }
   try {
-    scene.mesh = TriangleMesh(V, F);
+    scene.rods = build_rods(scene.spec);
   } catch (const ConfigError& e) {
-    throw ConfigError(header, {e.what()});
+    throw ConfigError(header, e.violations().empty() ? std::vector<std::string>{e.what()} : e.violations());
   }
   // Initial positions: the rest positions, or a second OBJ of the same mesh.
   scene.start = V;

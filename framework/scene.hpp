@@ -16,7 +16,9 @@
 
 #include "framework/obstacle_mesh.hpp"
 #include "framework/params.hpp"
+#include "framework/motion.hpp"
 #include "framework/params_json.hpp"
+#include "framework/rod_set.hpp"
 #include "framework/state.hpp"
 #include "framework/triangle_mesh.hpp"
 
@@ -154,27 +156,6 @@ struct RestStateSpec {
   }
 };
 
-/// Scripted rigid motion, active over [start, end]:
-/// x(t) = center + v (t' - start) + R(omega (t' - start)) (x0 - center), t' = clamp(t, start, end).
-struct Motion {
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();          ///< [m/s]
-  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< [rad/s] about `center`
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();            ///< [m] rotation centre at `start`
-  double start = 0;                                            ///< [s]
-  double end = std::numeric_limits<double>::infinity();       ///< [s]
-
-  bool is_static() const { return velocity.isZero() && angular_velocity.isZero(); }
-  /// Position at time t of the point that was at x0 at time `start`.
-  Eigen::Vector3d apply(const Eigen::Vector3d& x0, double t) const;
-  template <class V>
-  void visit(V& v) {
-    v.field("velocity", velocity, {Unit::velocity, Range::any(), "linear velocity"});
-    v.field("angular_velocity", angular_velocity, {Unit::angular_velocity, Range::any(), "angular velocity (axis * rate)"});
-    v.field("center", center, {Unit::length, Range::any(), "centre of rotation at `start`"});
-    v.field("start", start, {Unit::time, Range::ge(0), "start of the motion"});
-    v.field("end", end, {Unit::time, Range::ge(0), "end of the motion (the body stops there)"});
-  }
-};
 
 /// How a cloth mesh is made.
 enum class MeshSource { rectangle, l_shape, file };
@@ -336,6 +317,7 @@ struct SceneSpec {
   std::string combo = "cloth_ip_direct";
   std::string description;
   std::vector<ClothSpec> cloths;
+  std::vector<RodSpec> rods;
   std::vector<ObstacleSpec> obstacles;
   Eigen::Vector3d gravity{0, 0, -9.81};
   TimeSpec time;
@@ -345,7 +327,8 @@ struct SceneSpec {
   void visit(V& v) {
     v.field("combo", combo, {Unit::none, Range::any(), "pre-built combination of policies (`weft list`)"});
     v.field("description", description, {Unit::none, Range::any(), "free text"});
-    v.list("cloths", cloths, "cloth sheets", 1);
+    v.list("cloths", cloths, "cloth sheets (a scene has at least one cloth or one rod family)");
+    v.list("rods", rods, "families of elastic rods (hair)");
     v.list("obstacles", obstacles, "scripted rigid obstacles: analytic shapes or triangle meshes");
     v.field("gravity", gravity, {Unit::acceleration, Range::any(), "gravitational acceleration"});
     v.section("time", time);
@@ -359,7 +342,8 @@ struct Scene {
   SceneSpec spec;
   std::string path;                 ///< scene file ("" if built in code)
   Json solver;                      ///< the "energy", "integrator", "contact", "linear" sections
-  TriangleMesh mesh;                ///< all cloths, concatenated
+  TriangleMesh mesh;                ///< all cloths, concatenated (empty without cloths)
+  RodSet rods;                      ///< all rods, generated from `spec.rods`
   std::vector<int> cloth_vertex_offset;  ///< #cloths+1: vertex range of each cloth
   std::vector<int> cloth_face_offset;    ///< #cloths+1: face range of each cloth
   std::vector<int> face_cloth;      ///< #F: cloth index of each face (material = cloths[c].material)

@@ -17,7 +17,7 @@ struct UnitDef {
 };
 
 constexpr double deg = std::numbers::pi / 180.0;
-constexpr std::array<UnitDef, 40> table{{
+constexpr std::array<UnitDef, 45> table{{
     {"m", Unit::length, 1.0},          {"cm", Unit::length, 1e-2},        {"mm", Unit::length, 1e-3},
     {"um", Unit::length, 1e-6},        {"km", Unit::length, 1e3},         {"m^2", Unit::area, 1.0},
     {"cm^2", Unit::area, 1e-4},        {"mm^2", Unit::area, 1e-6},        {"kg/m^2", Unit::area_density, 1.0},
@@ -31,7 +31,9 @@ constexpr std::array<UnitDef, 40> table{{
     {"rad", Unit::angle, 1.0},         {"deg", Unit::angle, deg},         {"rad/s", Unit::angular_velocity, 1.0},
     {"deg/s", Unit::angular_velocity, deg}, {"rpm", Unit::angular_velocity, 2 * std::numbers::pi / 60.0},
     {"J", Unit::energy, 1.0},          {"N m", Unit::energy, 1.0},        {"erg", Unit::energy, 1e-7},
-    {"kg", Unit::mass, 1.0},           {"g", Unit::mass, 1e-3},
+    {"kg", Unit::mass, 1.0},           {"g", Unit::mass, 1e-3},           {"kg/m^3", Unit::density, 1.0},
+    {"g/cm^3", Unit::density, 1e3},    {"Pa s", Unit::viscosity, 1.0},    {"P", Unit::viscosity, 0.1},
+    {"g/(cm s)", Unit::viscosity, 0.1},
 }};
 
 std::string_view trim(std::string_view s) {
@@ -57,6 +59,8 @@ std::string_view si_symbol(Unit u) {
     case Unit::angular_velocity: return "rad/s";
     case Unit::energy: return "J";
     case Unit::mass: return "kg";
+    case Unit::density: return "kg/m^3";
+    case Unit::viscosity: return "Pa s";
   }
   return "";
 }
@@ -76,6 +80,8 @@ std::string_view dimension_name(Unit u) {
     case Unit::angular_velocity: return "angular velocity";
     case Unit::energy: return "energy";
     case Unit::mass: return "mass";
+    case Unit::density: return "density";
+    case Unit::viscosity: return "viscosity";
   }
   return "";
 }

@@ -23,6 +23,8 @@ enum class Unit {
   angular_velocity,  ///< rad/s
   energy,            ///< J (also N m: bending stiffness)
   mass,              ///< kg
+  density,           ///< kg/m^3
+  viscosity,         ///< Pa s (dynamic viscosity)
 };
 
 /// SI symbol of a unit ("" for none).

@@ -93,7 +93,7 @@ TEST_SUITE("framework") {
     CHECK(errors_of(doc).find("no_such_mesh.obj: mesh file not found") != std::string::npos);
     doc = base_scene();
     doc.erase("cloths");
-    CHECK(errors_of(doc).find("cloths is required but missing") != std::string::npos);
+    CHECK(errors_of(doc).find("cloths, rods: a scene needs at least one cloth or one rod family") != std::string::npos);
   }
 
   TEST_CASE("scene: scripted pins follow their rigid motion") {
