@@ -114,6 +114,15 @@ class FrameWriter {
         pvd_->add(s.t, base + ".vtp", static_cast<int>(c));
       }
     }
+    const int parts = static_cast<int>(faces_.size()) + (spec.rods.empty() ? 0 : 1);
+    if (!spec.rods.empty()) {  // every rod, as polylines
+      const std::string base = fmt::format("rods_{:04d}", k);
+      if (spec.output.obj) write_polylines_obj((dir_ / (base + ".obj")).string(), s.x, scene_.rods.first, fmt::format("weft frame {} t={}", k, s.t)), ++files;
+      if (spec.output.vtp) {
+        write_polylines_vtp((dir_ / (base + ".vtp")).string(), s.x, scene_.rods.first, &s.v), ++files;
+        pvd_->add(s.t, base + ".vtp", static_cast<int>(faces_.size()));
+      }
+    }
     for (size_t o = 0; o < spec.obstacles.size(); ++o) {
       const MeshData m = obstacle_mesh(spec.obstacles[o], s.t);
       Eigen::VectorXd x(3 * m.V.rows());
@@ -122,7 +131,7 @@ class FrameWriter {
       if (spec.output.obj) write_obj((dir_ / (base + ".obj")).string(), x, m.F), ++files;
       if (spec.output.vtp) {
         write_vtp((dir_ / (base + ".vtp")).string(), x, m.F), ++files;
-        pvd_->add(s.t, base + ".vtp", static_cast<int>(faces_.size() + o));
+        pvd_->add(s.t, base + ".vtp", parts + static_cast<int>(o));
       }
     }
     return files;
@@ -214,8 +223,12 @@ int run_scene(const RunOptions& opt) {
   Progress progress(frames, opt.progress, opt.quiet);
 
   if (!opt.quiet)
-    spdlog::info("{}: {} vertices, {} faces, {} hinges; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene,
-                 scene.mesh.num_vertices(), scene.mesh.num_faces(), scene.mesh.num_hinges(), sim->combo(), time.dt, spf, frames);
+    if (scene.spec.rods.empty())
+      spdlog::info("{}: {} vertices, {} faces, {} hinges; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene,
+                   scene.mesh.num_vertices(), scene.mesh.num_faces(), scene.mesh.num_hinges(), sim->combo(), time.dt, spf, frames);
+    else
+      spdlog::info("{}: {} rods, {} vertices; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene, scene.rods.num_rods(),
+                   scene.rods.num_vertices(), sim->combo(), time.dt, spf, frames);
 
   int files = writer.write(0, sim->state());
   int frames_written = 1, steps = 0;
@@ -290,7 +303,8 @@ int run_scene(const RunOptions& opt) {
   Json summary{{"status", status},
                {"scene", opt.scene},
                {"combo", std::string(sim->combo())},
-               {"vertices", scene.mesh.num_vertices()},
+               {"vertices", scene.spec.rods.empty() ? scene.mesh.num_vertices() : scene.rods.num_vertices()},
+               {"rods", scene.rods.num_rods()},
                {"faces", scene.mesh.num_faces()},
                {"dt", time.dt},
                {"steps", steps},

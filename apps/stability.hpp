@@ -21,7 +21,7 @@ struct StabilityOptions {
   std::string out_dir = "out-stability";
   double duration = 0;                     ///< [s]; 0 = the scene's
   double strain_threshold = 0.5;           ///< largest admissible edge strain |l/l0 - 1|
-  double energy_growth = 0.1;              ///< blow-up: total energy rises above E0 + energy_growth * scale
+  double energy_growth = 0.1;              ///< blow-up: total energy rises above E0 + energy_growth * scale (scenes without scripted motion)
   bool quiet = false;
 };
 

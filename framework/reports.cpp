@@ -108,6 +108,15 @@ Json to_json(const ContactReport& r) {
   put("gs_sweeps", r.gs_sweeps);
   put("gs_residual", r.gs_residual);
   put("gs_unconverged", r.gs_unconverged);
+  put("rod_contacts", r.rod_contacts);
+  put("contact_groups", r.contact_groups);
+  put("largest_group", r.largest_group);
+  put("outer_iterations", r.outer_iterations);
+  put("max_outer_iterations", r.max_outer_iterations);
+  put("relinearized", r.relinearized);
+  put("capped_groups", r.capped_groups);
+  put("max_stretch", r.max_stretch);
+  put("redetections", r.redetections);
   if (!r.message.empty()) j["message"] = r.message;
   return j;
 }

@@ -102,6 +102,16 @@ struct ContactReport {
   int gs_sweeps = 0;           ///< Gauss-Seidel sweeps of the contact solve
   double gs_residual = 0;      ///< [m/s] largest Fischer-Burmeister residual at its end
   int gs_unconverged = 0;      ///< 1 when the contact solve stopped at its sweep limit above the tolerance
+  // Counters of the rod strategies (contact/rods/): impulse, linear compliance, ADONIS, staggered projections.
+  int rod_contacts = 0;        ///< rod-rod contacts (obstacle contacts of rods count in `obstacle_contacts`)
+  int contact_groups = 0;      ///< connected components of rods linked by contacts
+  int largest_group = 0;       ///< contacts in the largest group
+  int outer_iterations = 0;    ///< constrained Newton iterations, summed over the groups
+  int max_outer_iterations = 0;  ///< constrained Newton iterations of the group that needed most
+  int relinearized = 0;        ///< rod Hessians re-evaluated and refactored after the first iteration, summed
+  int capped_groups = 0;       ///< groups that stopped at the Newton cap above the stretch tolerance
+  double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
+  int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again)
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts
@@ -131,6 +141,15 @@ struct ContactReport {
     gs_sweeps += end.gs_sweeps;
     gs_residual = std::max(gs_residual, end.gs_residual);
     gs_unconverged += end.gs_unconverged;
+    rod_contacts = std::max(rod_contacts, end.rod_contacts);
+    contact_groups = std::max(contact_groups, end.contact_groups);
+    largest_group = std::max(largest_group, end.largest_group);
+    outer_iterations += end.outer_iterations;
+    max_outer_iterations = std::max(max_outer_iterations, end.max_outer_iterations);
+    relinearized += end.relinearized;
+    capped_groups += end.capped_groups;
+    max_stretch = end.max_stretch;
+    redetections += end.redetections;
     max_penetration = end.max_penetration;
     solve_penetration = std::max(solve_penetration, end.solve_penetration);
     return *this;

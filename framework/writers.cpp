@@ -60,6 +60,43 @@ void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::M
   f.commit();
 }
 
+void write_polylines_obj(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first, const std::string& comment) {
+  AtomicFile f(path);
+  auto& s = f.stream();
+  if (!comment.empty()) s << "# " << comment << "\n";
+  for (Eigen::Index i = 0; i < x.size() / 3; ++i) s << fmt::format("v {} {} {}\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+  for (size_t r = 0; r + 1 < first.size(); ++r) {
+    s << "l";
+    for (int i = first[r]; i < first[r + 1]; ++i) s << ' ' << i + 1;
+    s << "\n";
+  }
+  f.commit();
+}
+
+void write_polylines_vtp(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first, const Eigen::VectorXd* velocity) {
+  AtomicFile f(path);
+  auto& s = f.stream();
+  const Eigen::Index nv = x.size() / 3;
+  const size_t nl = first.empty() ? 0 : first.size() - 1;
+  s << "<?xml version=\"1.0\"?>\n"
+       "<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n<PolyData>\n";
+  s << fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n", nv, nl);
+  s << "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+  s << "</DataArray>\n</Points>\n";
+  if (velocity) {
+    s << "<PointData Vectors=\"velocity\">\n<DataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", (*velocity)[3 * i], (*velocity)[3 * i + 1], (*velocity)[3 * i + 2]);
+    s << "</DataArray>\n</PointData>\n";
+  }
+  s << "<Lines>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+  for (Eigen::Index i = 0; i < nv; ++i) s << i << (i % 16 == 15 ? "\n" : " ");
+  s << "\n</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+  for (size_t r = 0; r < nl; ++r) s << first[r + 1] << (r % 16 == 15 ? "\n" : " ");
+  s << "\n</DataArray>\n</Lines>\n</Piece>\n</PolyData>\n</VTKFile>\n";
+  f.commit();
+}
+
 void PvdSeries::add(double time, const std::string& file, int part) {
   entries_.push_back({time, part, file});
   AtomicFile f(path_);

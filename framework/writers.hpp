@@ -36,6 +36,12 @@ void write_json_file(const std::string& path, const Json& j);
 void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F,
                const Eigen::VectorXd* velocity = nullptr);
 
+/// Rods as polylines: vertices x (stacked), rod r = vertices first[r] .. first[r+1]-1.
+/// OBJ with `l` elements, and VTK PolyData with Lines (velocity as point data if given).
+void write_polylines_obj(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first, const std::string& comment = {});
+void write_polylines_vtp(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first,
+                         const Eigen::VectorXd* velocity = nullptr);
+
 /// A ParaView collection (.pvd) listing time-stamped datasets.
 class PvdSeries {
  public:

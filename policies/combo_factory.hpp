@@ -34,6 +34,11 @@ std::vector<PolicyDoc> combo_docs() {
           policy_doc<typename Sim::ContactType>("contact"), policy_doc<typename Sim::LinearType>("linear")};
 }
 
+template <class Sim>
+std::vector<PolicyDoc> rod_combo_docs() {
+  return {policy_doc<typename Sim::IntegratorType>("integrator"), policy_doc<typename Sim::ContactType>("contact")};
+}
+
 }  // namespace weft::detail
 
 /// Defines the factory and docs functions of a combination in its own translation unit,
@@ -45,4 +50,11 @@ std::vector<PolicyDoc> combo_docs() {
   namespace combo_factories {                                                                                      \
   std::unique_ptr<AnySimulator> make_##key(const Scene& scene) { return detail::make_combo<__VA_ARGS__>(#key, scene); } \
   std::vector<PolicyDoc> docs_##key() { return detail::combo_docs<__VA_ARGS__>(); }                                \
+  }
+
+/// The same for a rod combination (its sections: integrator and contact).
+#define WEFT_DEFINE_ROD_COMBO(key, ...)                                                                            \
+  namespace combo_factories {                                                                                      \
+  std::unique_ptr<AnySimulator> make_##key(const Scene& scene) { return detail::make_combo<__VA_ARGS__>(#key, scene); } \
+  std::vector<PolicyDoc> docs_##key() { return detail::rod_combo_docs<__VA_ARGS__>(); }                            \
   }

@@ -36,7 +36,17 @@
   X(cloth_ip_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
     "sa_ppcg", "as cloth_ip_direct with smoothed-aggregation prefiltered PCG (thesis ch. 11): large cloth")  \
   X(cloth_lie_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",   \
-    "sa_ppcg", "Baraff-Witkin linearly implicit Euler with SA+PPCG: the thesis' chapter-11 simulator")
+    "sa_ppcg", "Baraff-Witkin linearly implicit Euler with SA+PPCG: the thesis' chapter-11 simulator")          \
+  X(rods_none, "discrete_elastic_rod + gravity", "rod_backward_euler", "none", "banded_lu",                     \
+    "elastic rods without contact: per-rod backward Euler as minimisation, banded LU")                       \
+  X(rods_impulse, "discrete_elastic_rod + gravity", "rod_backward_euler", "impulse", "banded_lu",             \
+    "rods with the impulse response (D = M^-1): Gauss-Seidel over exact Coulomb contacts, one pass")         \
+  X(rods_linear, "discrete_elastic_rod + gravity", "rod_backward_euler", "linear_compliance", "banded_lu",    \
+    "rods with linear compliance (D = K^-1 at the DEL solution, frozen): one constrained Newton step")       \
+  X(rods_adonis, "discrete_elastic_rod + gravity", "rod_backward_euler", "adonis", "banded_lu",               \
+    "ADONIS: Gauss-Seidel inside a constrained Newton loop re-linearising the over-stretched rods (thesis ch. 8)") \
+  X(rods_staggered, "discrete_elastic_rod + gravity", "rod_backward_euler", "staggered_projections", "banded_lu", \
+    "nonlinear staggered projections: alternating contact and friction problems inside Newton (thesis ch. 8)")
 
 namespace weft {
 
@@ -58,6 +68,16 @@ const ComboInfo table[] = {WEFT_COMBO_TABLE(WEFT_ROW)};
 std::span<const ComboInfo> combos() { return table; }
 
 std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
+  const bool rod_combo = combo.energy.find("discrete_elastic_rod") != std::string_view::npos;
+  if (rod_combo && scene.spec.rods.empty()) return "the scene has no rods: a rod combination simulates rods only";
+  if (rod_combo && !scene.spec.cloths.empty()) return "the scene has cloths: a rod combination simulates rods only";
+  if (!rod_combo && scene.spec.cloths.empty()) return "the scene has no cloths: a cloth combination would instantiate cloth models for nothing";
+  if (!rod_combo && !scene.spec.rods.empty()) return "the scene has rods: a cloth combination does not simulate rods";
+  if (rod_combo) {
+    if (combo.contact == "none" && !scene.spec.obstacles.empty())
+      return fmt::format("the scene has {} obstacle(s) but contact = none would let the rods pass through them", scene.spec.obstacles.size());
+    return {};
+  }
   if (combo.contact == "none" && !scene.spec.obstacles.empty())
     return fmt::format("the scene has {} obstacle(s) but contact = none would let the cloth pass through them",
                        scene.spec.obstacles.size());

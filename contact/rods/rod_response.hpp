@@ -1,0 +1,488 @@
+#pragma once
+/// \file rod_response.hpp
+/// The contact strategies of elastic rods (spec 03 §8, §10, §11), one code path for all of
+/// them as the thesis ran its baselines (§10.9): the strategies differ only in the
+/// compliance D that maps contact multipliers to displacements, in whether it is refreshed
+/// inside a constrained Newton loop, and in the inner contact solver.
+///
+///   strategy               D                                   outer loop                 inner solve
+///   impulse                M^-1                                one pass                   Gauss-Seidel (GS)
+///   linear_compliance      (M + h^2 H(q + d_DEL))^-1, frozen    one pass                   GS
+///   adonis                 (M + h^2 H(q + d))^-1, refreshed     until no rod of the group  GS
+///                          only for over-stretched rods          is stretched > tol
+///   staggered_projections  refreshed for every rod of the group  as ADONIS                 alternate a contact
+///                                                                                          (normal) and a friction
+///                                                                                          problem to a tolerance
+///
+/// Per step (Algorithm 6 of the thesis, cleaned in spec 03 §10.8): detection on the
+/// unconstrained trajectory q -> q + d_DEL (rod-rod proximity or CCD, rod-obstacle CCD:
+/// contact/rods/rod_detection.hpp); per contact k the stencil weights gamma, the frame
+/// F_k = [n, t1, t2] and the scale s_k = (sum over free stencil vertices of gamma^2)^-1/2,
+/// so that the local displacement is u_k = s_k F_k^T (sum_j gamma_j d_j - d_obstacle)
+///  = G_k^T d + b_k (b_k: the held vertices' and the obstacle's scripted motion); contact
+/// groups = connected components of rods linked by rod-rod contacts, each solved on its
+/// own (in parallel). Inside a group, with lambda_k the multiplier of contact k (units of
+/// M times a displacement, N s^2) and P_k = D G_k stored on the rows of its one or two
+/// rods:
+///   loop:  d_u = d (first iteration: the DEL solution) or d - D f(d) (later ones)
+///          x = d_u + sum_k P_k lambda_k;  GS sweeps (or staggered projections) until the
+///          largest Fischer-Burmeister residual is below `contact_tol` or `gs_max` sweeps
+///          d = x;  stop unless the strategy re-linearises and some rod is over-stretched
+///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
+/// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
+/// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <string_view>
+#include <vector>
+
+#include "contact/coulomb.hpp"
+#include "contact/rods/rod_detection.hpp"
+#include "framework/params.hpp"
+#include "framework/scene.hpp"
+#include "framework/status.hpp"
+#include "framework/timers.hpp"
+
+namespace weft::contact::rods {
+
+enum class RodStrategy { impulse, linear_compliance, adonis, staggered_projections };
+inline constexpr std::array<std::string_view, 4> rod_strategy_names = {"impulse", "linear_compliance", "adonis",
+                                                                       "staggered_projections"};
+
+/// Which start gap enters the linearised constraint.
+enum class GapTerm {
+  none,         ///< n^T d >= 0 (spec 03 (4.1), the thesis)
+  penetration,  ///< n^T d >= -min(gap, 0): an overlap at the start is pushed out
+  full,         ///< n^T d >= -gap: a proximity contact may close its gap
+};
+inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "penetration", "full"};
+
+/// Parameters shared by every rod strategy (one runtime struct, spec 03 §16.2).
+struct RodContactParams {
+  double friction = 0.2;       ///< Coulomb coefficient of rod-rod contacts (obstacles: their own `friction`)
+  double proximity = 0;        ///< [m] extra proximity radius of rod-rod detection
+  bool rod_ccd = true;         ///< rod-rod continuous detection (else proximity at the start of the step)
+  bool self_contact = true;
+  int self_skip = 2;           ///< same-rod edge pairs within this many edges are never contacts
+  double contact_tol = 1e-8;   ///< [m] largest Fischer-Burmeister residual of a converged contact solve (1e-6 cm, the thesis)
+  int gs_max = 150;            ///< Gauss-Seidel sweeps per contact solve
+  double stretch_tol = 0.01;   ///< ADONIS: a rod whose edges extend more than this is re-linearised
+  int newton_max = 100;        ///< ADONIS, staggered projections: constrained Newton iterations per group
+  int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
+  double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
+  GapTerm gap = GapTerm::none;
+  int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
+  template <class V>
+  void visit(V& v) {
+    v.field("friction", friction, {Unit::none, Range::ge(0), "Coulomb coefficient of rod-rod contacts (obstacles use their own)"});
+    v.field("proximity", proximity, {Unit::length, Range::ge(0), "extra proximity radius of rod-rod detection"});
+    v.field("rod_ccd", rod_ccd, {Unit::none, Range::any(), "rod-rod continuous detection over the step (else proximity at its start)"});
+    v.field("self_contact", self_contact, {Unit::none, Range::any(), "detect contacts of a rod with itself"});
+    v.field("self_skip", self_skip, {Unit::none, Range::closed(1, 1000), "same-rod edge pairs within this many edges are never contacts"});
+    v.field("contact_tol", contact_tol, {Unit::length, Range::gt(0), "Fischer-Burmeister residual of a converged contact solve"});
+    v.field("gs_max", gs_max, {Unit::none, Range::closed(1, 1000000), "Gauss-Seidel sweeps per contact solve"});
+    v.field("stretch_tol", stretch_tol, {Unit::none, Range::gt(0), "ADONIS: re-linearise rods whose edges extend more than this"});
+    v.field("newton_max", newton_max, {Unit::none, Range::closed(1, 100000), "constrained Newton iterations per contact group"});
+    v.field("sp_max", sp_max, {Unit::none, Range::closed(1, 100000), "staggered projections: alternations per Newton iteration"});
+    v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
+    v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
+    v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
+  }
+};
+
+/// One contact of a step: where it acts, its basis and its compliance columns.
+struct RodContactRows {
+  RodContact geometry;
+  std::array<int, 2> rods{-1, -1};           ///< distinct rods touched (second -1 for self and obstacle contacts)
+  std::array<Eigen::MatrixXd, 2> G, P;       ///< per touched rod: n_r x 3 columns of G_k and of D G_k
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();  ///< scripted part of u_k
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  ///< G_k^T D G_k
+  Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
+  double mu = 0;
+  double scale = 1;                          ///< coulomb_scale(W)
+};
+
+/// Statistics of one group's solve.
+struct GroupStats {
+  int contacts = 0, outer = 0, sweeps = 0, relinearized = 0, sp_iterations = 0;
+  double residual = 0;
+  bool unconverged = false, capped = false;
+  Status status = Status::success;
+  std::string message;
+};
+
+/// Union-find over rods: contact groups (spec 03 §10.2), deterministic order (rods and
+/// contacts ascending within a group, groups by their smallest rod).
+std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<RodContactRows>& contacts,
+                                             std::vector<std::vector<int>>& group_rods);
+
+/// The code path shared by the four strategies.
+template <RodStrategy S>
+class RodResponse {
+ public:
+  static constexpr RodStrategy strategy = S;
+  static constexpr std::string_view name = rod_strategy_names[static_cast<int>(S)];
+  static constexpr bool uses_stiffness = S != RodStrategy::impulse;
+  static constexpr bool relinearizes = S == RodStrategy::adonis || S == RodStrategy::staggered_projections;
+  using Params = RodContactParams;
+
+  RodResponse(const Scene&, const Params& p) : prm_(p) {}
+  const Params& params() const { return prm_; }
+  /// The contacts of the last step, after the response (for tests and diagnostics).
+  const std::vector<RodContactRows>& last_contacts() const { return contacts_; }
+  const std::vector<GroupStats>& last_groups() const { return stats_; }
+
+  template <class System>
+  ContactReport resolve(System& sys) {
+    ContactReport rep;
+    const int R = sys.num_rods();
+    std::vector<Eigen::VectorXd> del(R);
+    for (int r = 0; r < R; ++r) del[r] = sys.body(r).d;
+    contacts_.clear();
+    stats_.clear();
+    RodDetectionParams dp;
+    dp.proximity = prm_.proximity;
+    dp.rod_ccd = prm_.rod_ccd;
+    dp.self_contact = prm_.self_contact;
+    dp.self_skip = prm_.self_skip;
+    // Detection on q -> q + d_DEL, then again on q -> q + d after each response: the
+    // constraints are linearised, and a later Newton iteration (or the response of other
+    // contacts through D) may carry a point that had no contact into an obstacle or a rod.
+    // New contacts join the set and every group is solved again from d_DEL (warm multipliers).
+    for (int round = 0; round <= prm_.redetections; ++round) {
+      RodCurves curves;
+      curves.first.assign(1, 0);
+      for (int r = 0; r < R; ++r) {
+        const auto& b = sys.body(r);
+        for (int i = 0; i < b.num_vertices(); ++i) {
+          curves.x0.push_back(b.q.template segment<3>(4 * i));
+          curves.x1.push_back(b.q.template segment<3>(4 * i) + b.d.template segment<3>(4 * i));
+        }
+        curves.first.push_back(static_cast<int>(curves.x0.size()));
+        curves.radius.push_back(b.radius);
+      }
+      std::vector<RodContact> found;
+      {
+        ScopedTimer t(rep.detection_seconds);
+        found = detect_rod_contacts(curves, sys.obstacles(), sys.time(), sys.time() + sys.dt(), dp);
+      }
+      ScopedTimer t(rep.response_seconds);
+      size_t added = 0;
+      for (const RodContact& c : found) {
+        if (std::any_of(contacts_.begin(), contacts_.end(), [&](const RodContactRows& k) { return same_pair(k.geometry, c); }))
+          continue;
+        RodContactRows k;
+        if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
+      }
+      if (added == 0) break;
+      if (round > 0) {
+        ++rep.redetections;
+        if (round == prm_.redetections) {  // still new contacts after the last solve
+          rep.status = Status::no_convergence;
+          rep.message = fmt::format("{} new contacts after {} re-detections: the response keeps creating contacts", added, round);
+          break;
+        }
+      }
+      for (int r = 0; r < R; ++r) sys.body(r).d = del[r];
+      std::vector<std::vector<int>> group_rods;
+      const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods);
+      stats_.assign(groups.size(), {});
+#pragma omp parallel for schedule(dynamic, 1)
+      for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group(sys, groups[g], group_rods[g]);
+      rep.contact_groups = static_cast<int>(groups.size());
+      rep.largest_group = 0;
+      rep.max_outer_iterations = 0;
+      rep.gs_residual = 0;
+      rep.gs_unconverged = 0;
+      rep.capped_groups = 0;
+      for (const GroupStats& st : stats_) {
+        rep.largest_group = std::max(rep.largest_group, st.contacts);
+        rep.outer_iterations += st.outer;
+        rep.max_outer_iterations = std::max(rep.max_outer_iterations, st.outer);
+        rep.gs_sweeps += st.sweeps;
+        rep.gs_residual = std::max(rep.gs_residual, st.residual);
+        rep.gs_unconverged += st.unconverged;
+        rep.relinearized += st.relinearized;
+        rep.capped_groups += st.capped;
+        if (st.status != Status::success && rep.status == Status::success) {
+          rep.status = st.status;
+          rep.message = st.message;
+        }
+      }
+      if (rep.status != Status::success) break;
+    }
+    rep.contacts = static_cast<int>(contacts_.size());
+    for (const auto& k : contacts_) (k.geometry.kind == RodContact::Kind::rod_rod ? rep.rod_contacts : rep.obstacle_contacts)++;
+    return rep;
+  }
+
+ private:
+  /// The same contact (the same features) found again by a later detection.
+  static bool same_pair(const RodContact& a, const RodContact& b) {
+    return a.kind == b.kind && a.rod_a == b.rod_a && a.edge_a == b.edge_a && a.rod_b == b.rod_b && a.edge_b == b.edge_b &&
+           a.obstacle == b.obstacle && a.obstacle_edge == b.obstacle_edge && (!a.vertex_contact() || a.s_a == b.s_a);
+  }
+  /// G_k, b_k and mu_k of a detected contact; false when every stencil vertex is held.
+  template <class System>
+  bool build_rows(System& sys, const RodContact& c, RodContactRows& k) const {
+    k.geometry = c;
+    const Eigen::Vector3d n = c.normal.normalized();
+    const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d t1 = (a - a.dot(n) * n).normalized(), t2 = n.cross(t1);
+    Eigen::Matrix3d F;
+    F << n, t1, t2;
+    // Stencil: (rod, local vertex, gamma).
+    std::vector<std::tuple<int, int, double>> st = {{c.rod_a, c.edge_a, 1 - c.s_a}, {c.rod_a, c.edge_a + 1, c.s_a}};
+    if (c.kind == RodContact::Kind::rod_rod) {
+      st.emplace_back(c.rod_b, c.edge_b, -(1 - c.s_b));
+      st.emplace_back(c.rod_b, c.edge_b + 1, -c.s_b);
+      k.mu = prm_.friction;
+    } else {
+      k.mu = sys.obstacles()[c.obstacle].friction;
+    }
+    double free2 = 0;
+    for (const auto& [r, i, g] : st)
+      if (!sys.body(r).fixed[4 * i]) free2 += g * g;
+    if (!(free2 > 1e-24)) return false;
+    const double s = 1 / std::sqrt(free2);
+    k.rods = {c.rod_a, c.kind == RodContact::Kind::rod_rod && c.rod_b != c.rod_a ? c.rod_b : -1};
+    for (int side = 0; side < 2; ++side)
+      if (k.rods[side] >= 0) k.G[side] = Eigen::MatrixXd::Zero(sys.body(k.rods[side]).q.size(), 3);
+    Eigen::Vector3d scripted = Eigen::Vector3d::Zero();
+    for (const auto& [r, i, g] : st) {
+      const auto& b = sys.body(r);
+      if (b.fixed[4 * i]) {
+        scripted += g * b.d.template segment<3>(4 * i);  // the held vertex's prescribed displacement
+        continue;
+      }
+      const int side = r == k.rods[0] ? 0 : 1;
+      k.G[side].template middleRows<3>(4 * i) += s * g * F;
+    }
+    if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement;
+    k.b = s * F.transpose() * scripted;
+    if (prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) k.b[0] += s * c.gap;
+    return true;
+  }
+
+  /// u_k = G_k^T x + b_k.
+  Eigen::Vector3d local(const RodContactRows& k, const std::vector<Eigen::VectorXd*>& x) const {
+    Eigen::Vector3d u = k.b;
+    for (int side = 0; side < 2; ++side)
+      if (k.rods[side] >= 0) u += k.G[side].transpose() * *x[k.rods[side]];
+    return u;
+  }
+
+  /// P_k = D G_k and W_kk for the compliance of the strategy.
+  template <class System>
+  void build_compliance(System& sys, RodContactRows& k) const {
+    k.W.setZero();
+    for (int side = 0; side < 2; ++side) {
+      const int r = k.rods[side];
+      if (r < 0) continue;
+      k.P[side] = k.G[side];
+      if constexpr (S == RodStrategy::impulse) {
+        const auto& b = sys.body(r);
+        for (Eigen::Index i = 0; i < k.P[side].rows(); ++i) k.P[side].row(i) *= b.fixed[i] ? 0.0 : 1.0 / b.mass[i];
+      } else {
+        sys.solve(r, k.P[side]);
+      }
+      k.W += k.G[side].transpose() * k.P[side];
+    }
+    k.W = 0.5 * (k.W + k.W.transpose()).eval();
+    k.scale = coulomb_scale(k.W);
+  }
+
+  /// Gauss-Seidel over the group's contacts: one sweep (spec 03 §10.3, incremental form).
+  /// `mode`: 0 the full Coulomb problem, 1 the normal problem with the tangential
+  /// multipliers fixed, 2 the friction problem with the normal multipliers fixed.
+  void sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, std::vector<Eigen::VectorXd*>& x, int mode) const {
+    for (int id : ids) {
+      RodContactRows& k = cs[id];
+      const Eigen::Vector3d u = local(k, x);
+      const Eigen::Vector3d b = u - k.W * k.lambda;
+      Eigen::Vector3d r = k.lambda;
+      if (mode == 0) {
+        r = solve_coulomb(k.W, b, k.mu, k.lambda).r;
+      } else if (mode == 1) {  // min over r_n >= 0 of 1/2 W_nn r_n^2 + r_n (b_n + W_nt r_t)
+        const double bn = b[0] + k.W.row(0).tail<2>().dot(k.lambda.tail<2>());
+        r[0] = k.W(0, 0) > 0 ? std::max(0.0, -bn / k.W(0, 0)) : 0.0;
+      } else {  // min over |r_t| <= mu r_n of 1/2 r_t^T W_tt r_t + r_t^T (b_t + W_tn r_n): projected Newton on the disk
+        const Eigen::Matrix2d Wt = k.W.bottomRightCorner<2, 2>();
+        const Eigen::Vector2d bt = b.tail<2>() + k.W.bottomLeftCorner<2, 1>() * k.lambda[0];
+        const double radius = k.mu * std::max(0.0, k.lambda[0]);
+        Eigen::Vector2d rt = -Wt.ldlt().solve(bt);
+        if (!(rt.norm() <= radius)) {
+          // Projected gradient on the disk with step 1 / lambda_max(W_tt), to convergence.
+          const double L = std::max(Wt.eigenvalues().real().maxCoeff(), 1e-300);
+          rt = k.lambda.tail<2>();
+          for (int it = 0; it < 200; ++it) {
+            Eigen::Vector2d next = rt - (Wt * rt + bt) / L;
+            if (next.norm() > radius) next *= radius / next.norm();
+            const bool done = (next - rt).norm() <= 1e-14 * (radius + 1e-300);
+            rt = next;
+            if (done) break;
+          }
+        }
+        r.tail<2>() = rt;
+      }
+      const Eigen::Vector3d delta = r - k.lambda;
+      for (int side = 0; side < 2; ++side)
+        if (k.rods[side] >= 0) *x[k.rods[side]] += k.P[side] * delta;
+      k.lambda = r;
+    }
+  }
+
+  double contact_error(const std::vector<RodContactRows>& cs, const std::vector<int>& ids,
+                       const std::vector<Eigen::VectorXd*>& x) const {
+    double e = 0;
+    for (int id : ids) {
+      const RodContactRows& k = cs[id];
+      e = std::max(e, fischer_burmeister(k.lambda, local(k, x), k.mu, k.scale));
+    }
+    return e;
+  }
+
+  template <class System>
+  GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
+    GroupStats st;
+    st.contacts = static_cast<int>(ids.size());
+    const int R = sys.num_rods();
+    std::vector<Eigen::VectorXd> xs(rods.size());
+    std::vector<Eigen::VectorXd*> x(R, nullptr);
+    for (size_t i = 0; i < rods.size(); ++i) x[rods[i]] = &xs[i];
+    // The first linearisation: K at q + d_DEL for every rod of the group.
+    if constexpr (uses_stiffness)
+      for (int r : rods)
+        if (sys.relinearize(r) != Status::success) {
+          st.status = Status::numerical_issue;
+          st.message = fmt::format("rod {}: M + h^2 H cannot be factorised", r);
+          return st;
+        }
+    std::vector<int> rebuild = ids;
+    std::vector<unsigned char> fresh(R, 0);
+    for (int outer = 1;; ++outer) {
+      st.outer = outer;
+      for (int id : rebuild) build_compliance(sys, contacts_[id]);
+      // Predictor: the DEL solution first, then d - K^-1 f(d) with each rod's (possibly stale) K.
+      for (size_t i = 0; i < rods.size(); ++i) {
+        const int r = rods[i];
+        xs[i] = sys.body(r).d;
+        if (outer > 1) {
+          Eigen::VectorXd f;
+          sys.residual(r, xs[i], f);
+          Eigen::MatrixXd F = f;
+          sys.solve(r, F);
+          xs[i] -= F.col(0);
+        }
+      }
+      for (int id : ids) {
+        const RodContactRows& k = contacts_[id];
+        for (int side = 0; side < 2; ++side)
+          if (k.rods[side] >= 0) *x[k.rods[side]] += k.P[side] * k.lambda;
+      }
+      if constexpr (S == RodStrategy::staggered_projections) {
+        // Alternate the contact problem (normal multipliers, friction fixed) and the
+        // friction problem (tangential multipliers, normal fixed), each solved by GS to
+        // the tolerance, until the friction multipliers stop changing.
+        for (int sp = 0; sp < prm_.sp_max; ++sp) {
+          ++st.sp_iterations;
+          double beta_norm = 0, change = 0;
+          std::vector<Eigen::Vector2d> before(ids.size());
+          for (size_t i = 0; i < ids.size(); ++i) before[i] = contacts_[ids[i]].lambda.tail<2>();
+          for (int mode : {1, 2})
+            for (int s = 0; s < prm_.gs_max; ++s) {
+              ++st.sweeps;
+              std::vector<Eigen::Vector3d> old(ids.size());
+              for (size_t i = 0; i < ids.size(); ++i) old[i] = contacts_[ids[i]].lambda;
+              sweep(contacts_, ids, x, mode);
+              double d = 0, m = 0;
+              for (size_t i = 0; i < ids.size(); ++i) {
+                d = std::max(d, (contacts_[ids[i]].lambda - old[i]).norm() * contacts_[ids[i]].scale);
+                m = std::max(m, contacts_[ids[i]].lambda.norm() * contacts_[ids[i]].scale);
+              }
+              if (d <= 1e-3 * prm_.contact_tol + 1e-12 * m) break;
+            }
+          for (size_t i = 0; i < ids.size(); ++i) {
+            change = std::max(change, (contacts_[ids[i]].lambda.tail<2>() - before[i]).norm());
+            beta_norm = std::max(beta_norm, contacts_[ids[i]].lambda.tail<2>().norm());
+          }
+          if (change <= prm_.sp_tol * std::max(beta_norm, 1e-300)) break;
+        }
+        st.residual = contact_error(contacts_, ids, x);
+        st.unconverged = st.residual > prm_.contact_tol;
+      } else {
+        int sweeps = 0;
+        double err = contact_error(contacts_, ids, x);
+        while (err > prm_.contact_tol && sweeps < prm_.gs_max) {
+          sweep(contacts_, ids, x, 0);
+          ++sweeps;
+          err = contact_error(contacts_, ids, x);
+        }
+        st.sweeps += sweeps;
+        st.residual = err;
+        st.unconverged = err > prm_.contact_tol;
+      }
+      for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
+      if constexpr (!relinearizes) break;
+      else {
+        std::vector<int> over;
+        for (int r : rods)
+          if (sys.stretch(r, sys.body(r).d) > prm_.stretch_tol) over.push_back(r);
+        if (over.empty()) break;
+        if constexpr (S == RodStrategy::staggered_projections) over = rods;  // global re-linearisation of the group
+        if (outer >= prm_.newton_max) {
+          st.capped = true;
+          break;
+        }
+        std::fill(fresh.begin(), fresh.end(), 0);
+        for (int r : over) {
+          if (sys.relinearize(r) != Status::success) {
+            st.status = Status::numerical_issue;
+            st.message = fmt::format("rod {}: M + h^2 H cannot be factorised at Newton iteration {}", r, outer);
+            return st;
+          }
+          fresh[r] = 1;
+          ++st.relinearized;
+        }
+        rebuild.clear();
+        for (int id : ids) {
+          const RodContactRows& k = contacts_[id];
+          if (fresh[k.rods[0]] || (k.rods[1] >= 0 && fresh[k.rods[1]])) rebuild.push_back(id);
+        }
+      }
+    }
+    return st;
+  }
+
+  Params prm_;
+  std::vector<RodContactRows> contacts_;
+  std::vector<GroupStats> stats_;
+};
+
+using RodImpulse = RodResponse<RodStrategy::impulse>;
+using RodLinearCompliance = RodResponse<RodStrategy::linear_compliance>;
+using Adonis = RodResponse<RodStrategy::adonis>;
+using StaggeredProjections = RodResponse<RodStrategy::staggered_projections>;
+
+/// Rods without contact: the DEL solution is the step.
+class NoRodContact {
+ public:
+  static constexpr std::string_view name = "none";
+  struct Params {
+    template <class V>
+    void visit(V&) {}
+  };
+  NoRodContact(const Scene&, const Params&) {}
+  template <class System>
+  ContactReport resolve(System&) {
+    return {};
+  }
+};
+
+}  // namespace weft::contact::rods

@@ -1,0 +1,297 @@
+#pragma once
+/// \file rod_simulator.hpp
+/// `RodSimulator<Model, Integrator, Contact, Linear>`: elastic rods (hair) with frictional
+/// contact, composed at compile time (spec 03 §10.8, §16). Each rod is an independent
+/// system in the interleaved DoF layout of framework/rod_set.hpp with a banded Hessian:
+///
+///   1. per rod, in parallel: the unconstrained backward Euler step d_DEL (the integrator);
+///   2. the contact strategy owns the constrained Newton loop: it detects contacts on the
+///      trajectory q -> q + d_DEL, groups the rods they link, and corrects d per group with
+///      the compliance it uses (M^-1 for impulses, K^-1 frozen for linear compliance, K^-1
+///      refreshed per over-stretched rod for ADONIS). It reaches the rods through this
+///      class: `body(r)`, `relinearize(r)`, `solve(r, B)`, `residual(r, d, f)`;
+///   3. q <- q + d, v <- d / h, frames transported in time.
+///
+/// The rods' centrelines are exposed as a `State` (positions, velocities, vertex masses,
+/// held vertices as scripted), so writers and reports treat rods like cloth vertices.
+#include <Eigen/Core>
+
+#include <cmath>
+#include <memory>
+#include <type_traits>
+#include <vector>
+
+#include "framework/band_matrix.hpp"
+#include "framework/concepts.hpp"
+#include "framework/params_json.hpp"
+#include "framework/scene.hpp"
+#include "framework/status.hpp"
+
+namespace weft {
+
+/// One rod during a step: the data the integrator and the contact strategies work on.
+template <class Model, class Linear>
+struct RodBody {
+  using Frames = std::decay_t<decltype(std::declval<const Model&>().rest_frames())>;
+  Model model;
+  Eigen::VectorXd q, v;           ///< DoFs and their rates at the start of the step
+  Eigen::VectorXd mass;           ///< per DoF: vertex masses (x entries), twist inertias (theta entries)
+  Eigen::VectorXd fext;           ///< external force per DoF (gravity on the x entries)
+  Eigen::VectorXd target;         ///< end-of-step values of the held DoFs (other entries unused)
+  Eigen::VectorXd d;              ///< displacement of the step (DEL, then corrected by contact)
+  std::vector<unsigned char> fixed;  ///< per DoF: 1 when held by the scripted root
+  Frames frames;                  ///< reference frames at q
+  BandMatrix K;                   ///< M + h^2 H at the last linearisation
+  Linear lu;                      ///< its factorisation
+  double mean_edge = 0;           ///< [m] mean rest edge length
+  double radius = 0;              ///< [m] cross-section radius
+  int first_vertex = 0;           ///< global index of the rod's first centreline vertex
+  int num_vertices() const { return static_cast<int>((q.size() + 1) / 4); }
+
+  RodBody(Model m, Linear l) : model(std::move(m)), lu(std::move(l)) {}
+};
+
+template <class Model, class Integ, class Contact, class Linear>
+class RodSimulator {
+ public:
+  using ModelType = Model;
+  using IntegratorType = Integ;
+  using ContactType = Contact;
+  using LinearType = Linear;
+  using Body = RodBody<Model, Linear>;
+
+  /// The params tree: the scene file's "integrator" and "contact" sections (a rod's
+  /// material is part of the scene's rod family; the banded solver has no parameters).
+  struct Params {
+    typename Integ::Params integrator{};
+    typename Contact::Params contact{};
+    template <class V>
+    void visit(V& v) {
+      v.section("integrator", integrator);
+      v.section("contact", contact);
+    }
+    static Checker validate(const Params& p) {
+      Checker c;
+      if constexpr (requires { Contact::Params::validate(p.contact); }) c.merge(Contact::Params::validate(p.contact));
+      return c;
+    }
+  };
+
+  RodSimulator(Scene scene, const Params& prm) : scene_(std::move(scene)), prm_(prm), integrator_(prm_.integrator), contact_(scene_, prm_.contact) {
+    Params::validate(prm_).throw_if_failed();
+    const RodSet& rods = scene_.rods;
+    if (rods.num_rods() == 0) throw ConfigError(scene_.path + ": this combination simulates rods and the scene has none (add a \"rods\" family)");
+    if (!scene_.spec.cloths.empty())
+      throw ConfigError(scene_.path + ": this combination simulates rods only; the scene's cloths need a cloth combination");
+    const Eigen::Vector3d g = scene_.spec.gravity;
+    bodies_.reserve(rods.num_rods());
+    for (int r = 0; r < rods.num_rods(); ++r) {
+      const RodSpec& fam = scene_.spec.rods[rods.family[r]];
+      Body b(Model(rods.rest[r], fam.material), Linear{});
+      const Eigen::Index n = rods.rest[r].size();
+      b.q = rods.rest[r];
+      b.v = Eigen::VectorXd::Zero(n);
+      b.mass = b.model.mass();
+      b.fext = Eigen::VectorXd::Zero(n);
+      b.fixed.assign(n, 0);
+      const int V = rods.rod_vertices(r);
+      for (int i = 0; i < V; ++i) {
+        b.v.template segment<3>(4 * i) = fam.initial_velocity;
+        b.fext.template segment<3>(4 * i) = b.mass[4 * i] * g;
+      }
+      const int held = held_vertices(rods.root_held[r]);
+      for (int i = 0; i < held; ++i) {
+        for (int c = 0; c < 3; ++c) b.fixed[4 * i + c] = 1;
+        b.v.template segment<3>(4 * i).setZero();
+      }
+      if (held > 0) b.fixed[3] = 1, b.v[3] = 0;  // the root edge's twist
+      b.target = b.q;
+      b.d = Eigen::VectorXd::Zero(n);
+      b.frames = b.model.rest_frames();
+      double len = 0;
+      for (int i = 0; i + 1 < V; ++i) len += (b.q.template segment<3>(4 * i + 4) - b.q.template segment<3>(4 * i)).norm();
+      b.mean_edge = len / (V - 1);
+      b.radius = fam.material.radius;
+      b.first_vertex = rods.first[r];
+      bodies_.push_back(std::move(b));
+    }
+    held0_.resize(bodies_.size());
+    for (size_t r = 0; r < bodies_.size(); ++r) held0_[r] = bodies_[r].q;
+    centre_.mass.resize(rods.num_vertices());
+    centre_.dof.assign(rods.num_vertices(), Dof::free);
+    for (int r = 0; r < rods.num_rods(); ++r) {
+      const Body& b = bodies_[r];
+      for (int i = 0; i < b.num_vertices(); ++i) {
+        centre_.mass[b.first_vertex + i] = b.mass[4 * i];
+        if (b.fixed[4 * i]) centre_.dof[b.first_vertex + i] = rods.motion[r] >= 0 ? Dof::scripted : Dof::pinned;
+      }
+    }
+    sync_centrelines();
+  }
+  RodSimulator(const RodSimulator&) = delete;
+  RodSimulator& operator=(const RodSimulator&) = delete;
+
+  /// Advance by one time step of `scene().spec.time.dt`.
+  StepReport step() {
+    StepReport rep;
+    dt_ = scene_.spec.time.dt;
+    rep.step = ++steps_;
+    rep.dt = dt_;
+    const double t1 = centre_.t + dt_;
+    const int R = num_rods();
+    std::vector<NewtonReport> del(R);
+    {
+      ScopedTimer timer(rep.times, Stage::energy);  // the unconstrained solves (energy, Hessian and banded solves)
+#pragma omp parallel for schedule(dynamic, 4)
+      for (int r = 0; r < R; ++r) {
+        Body& b = bodies_[r];
+        held_targets(r, t1);
+        if constexpr (requires { b.model.set_viscous_rest(b.q, b.frames, dt_); }) b.model.set_viscous_rest(b.q, b.frames, dt_);
+        b.d = dt_ * b.v;  // initial guess: constant velocity
+        del[r] = integrator_.solve(b, dt_);
+      }
+    }
+    for (int r = 0; r < R; ++r) {
+      rep.newton.iterations = std::max(rep.newton.iterations, del[r].iterations);
+      rep.newton.final_residual = std::max(rep.newton.final_residual, del[r].final_residual);
+      if (del[r].status != Status::success)
+        return fail(rep, "integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message));
+    }
+    rep.newton.method = del.empty() ? "" : del[0].method;
+    rep.newton.stop_reason = "every rod converged (iterations: the largest over the rods)";
+    {
+      ScopedTimer timer(rep.times, Stage::contact);
+      rep.contact = contact_.resolve(*this);
+    }
+    if (rep.contact.status != Status::success) return fail(rep, "contact response", rep.contact.status, rep.contact.message);
+    double stretch = 0;
+    for (int r = 0; r < R; ++r) {
+      Body& b = bodies_[r];
+      if (!b.d.allFinite()) return fail(rep, "contact response", Status::numerical_issue, fmt::format("rod {}: non-finite displacement", r));
+      if (!b.model.admissible(b.q + b.d, b.frames))
+        return fail(rep, "contact response", Status::numerical_issue,
+                    fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r));
+    }
+#pragma omp parallel for schedule(dynamic, 4) reduction(max : stretch)
+    for (int r = 0; r < R; ++r) {
+      Body& b = bodies_[r];
+      b.v = b.d / dt_;
+      b.q += b.d;
+      b.frames = b.model.transport(b.frames, b.q);
+      stretch = std::max(stretch, b.model.stretch(b.q));
+    }
+    rep.contact.max_stretch = stretch;
+    centre_.t = t1;
+    sync_centrelines();
+    rep.time = centre_.t;
+    rep.energy = energies();
+    return rep;
+  }
+
+  const State& state() const { return centre_; }
+  const Scene& scene() const { return scene_; }
+  const Params& params() const { return prm_; }
+  const Contact& contact() const { return contact_; }
+
+  /// Kinetic (translation and twist) and potential (elastic per term, gravity) energies.
+  EnergyReport energies() const {
+    EnergyReport e;
+    double stretch = 0, bend = 0, twist = 0, other = 0, gravity = 0;
+    for (const Body& b : bodies_) {
+      e.kinetic += 0.5 * b.v.dot(b.mass.cwiseProduct(b.v));
+      EnergyTerms terms;
+      b.model.energy_terms(b.q, b.frames, terms);
+      for (const auto& [name, value] : terms) {
+        if (name.find("stretch") != std::string::npos) stretch += value;
+        else if (name.find("bend") != std::string::npos) bend += value;
+        else if (name.find("twist") != std::string::npos) twist += value;
+        else other += value;
+      }
+      gravity -= b.fext.dot(b.q);
+    }
+    e.terms = {{"stretch", stretch}, {"bending", bend}, {"twist", twist}, {"gravity", gravity}};
+    if (other != 0) e.terms.emplace_back("other", other);
+    for (const auto& [name, value] : e.terms) e.potential += value;
+    return e;
+  }
+  /// dV/dx on the centreline vertices (gravity included), held vertices zeroed: the static
+  /// force residual (twist components are not part of it).
+  Eigen::VectorXd potential_gradient() const {
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(3 * centre_.num_vertices());
+    for (const Body& b : bodies_) {
+      Eigen::VectorXd gr = Eigen::VectorXd::Zero(b.q.size());
+      b.model.add_gradient(b.q, b.frames, gr);
+      gr -= b.fext;
+      for (int i = 0; i < b.num_vertices(); ++i)
+        if (!b.fixed[4 * i]) g.segment<3>(3 * (b.first_vertex + i)) = gr.segment<3>(4 * i);
+    }
+    return g;
+  }
+
+  // ---- the system view of the contact strategies -------------------------------------
+  int num_rods() const { return static_cast<int>(bodies_.size()); }
+  Body& body(int r) { return bodies_[r]; }
+  const Body& body(int r) const { return bodies_[r]; }
+  double time() const { return centre_.t; }  ///< start of the current step
+  double dt() const { return dt_; }
+  const std::vector<ObstacleSpec>& obstacles() const { return scene_.spec.obstacles; }
+  /// K_r = M + h^2 H(q + d_r) (exact Hessian; the PSD projection if that does not factorise), factorised.
+  Status relinearize(int r) {
+    Body& b = bodies_[r];
+    if (Integ::relinearize(b, dt_, HessianMode::exact) == Status::success) return Status::success;
+    return Integ::relinearize(b, dt_, HessianMode::projected);
+  }
+  /// B <- K_r^-1 B (the last linearisation); held rows come out zero.
+  void solve(int r, Eigen::Ref<Eigen::MatrixXd> B) const {
+    const Body& b = bodies_[r];
+    b.lu.solve(B);
+    for (Eigen::Index i = 0; i < B.rows(); ++i)
+      if (b.fixed[i]) B.row(i).setZero();
+  }
+  /// The DEL residual f_r(d) (held rows zero).
+  void residual(int r, const Eigen::VectorXd& d, Eigen::VectorXd& f) const { Integ::residual(bodies_[r], d, dt_, f); }
+  /// max_j |e_j| / |e_rest_j| - 1 of q_r + d.
+  double stretch(int r, const Eigen::VectorXd& d) const { return bodies_[r].model.stretch(bodies_[r].q + d); }
+
+ private:
+  void held_targets(int r, double t1) {
+    Body& b = bodies_[r];
+    const int m = scene_.rods.motion[r];
+    for (int i = 0; i < b.num_vertices(); ++i) {
+      if (!b.fixed[4 * i]) continue;
+      const Eigen::Vector3d x0 = held0_[r].template segment<3>(4 * i);
+      b.target.template segment<3>(4 * i) = m >= 0 ? scene_.rods.motions[m].apply(x0, t1) : x0;
+    }
+    // The root edge's twist is held at its initial value relative to the transported frame.
+    if (b.fixed[3]) b.target[3] = held0_[r][3];
+  }
+  void sync_centrelines() {
+    const int V = scene_.rods.num_vertices();
+    centre_.x.resize(3 * V);
+    centre_.v.resize(3 * V);
+    for (const Body& b : bodies_)
+      for (int i = 0; i < b.num_vertices(); ++i) {
+        centre_.x.segment<3>(3 * (b.first_vertex + i)) = b.q.template segment<3>(4 * i);
+        centre_.v.segment<3>(3 * (b.first_vertex + i)) = b.v.template segment<3>(4 * i);
+      }
+  }
+  StepReport fail(StepReport& rep, std::string stage, Status s, std::string message) {
+    rep.status = s;
+    rep.failed_stage = std::move(stage);
+    rep.message = std::move(message);
+    rep.time = centre_.t + rep.dt;
+    return rep;
+  }
+
+  Scene scene_;
+  Params prm_;
+  Integ integrator_;
+  Contact contact_;
+  std::vector<Body> bodies_;
+  std::vector<Eigen::VectorXd> held0_;  ///< initial DoFs (held roots move rigidly from there)
+  State centre_;
+  double dt_ = 0;
+  int steps_ = 0;
+};
+
+}  // namespace weft
