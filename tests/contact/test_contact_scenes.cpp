@@ -284,10 +284,16 @@ TEST_SUITE("slow") {
     OneThread one;
     const Scene scene = load_scene(scene_file("twisted_sheet.json"), {"cloths.0.mesh.resolution=[31,13]"});
     auto sim = make_simulator(scene);
-    const RunStats st = run_checked(*sim, contact_thickness(*sim));
+    long long newton = 0;
+    int newton_max = 0;
+    const RunStats st = run_checked(*sim, contact_thickness(*sim), 1 << 30, [&](const AnySimulator&, const StepReport& r) {
+      newton += r.newton.iterations;
+      newton_max = std::max(newton_max, r.newton.iterations);
+    });
     CHECK(st.steps == 960);
     MESSAGE("twisted sheet 31x13: " << st.proximity << " proximity pairs, " << st.ccd_hits << " CCD hits, " << st.impact_zones
-                                    << " impact zones over " << st.steps << " steps");
+                                    << " impact zones over " << st.steps << " steps; Newton iterations per step "
+                                    << static_cast<double>(newton) / st.steps << " on average, " << newton_max << " at most");
     CHECK(st.proximity + st.ccd_hits > 0);  // it reached self contact
   }
 
