@@ -16,6 +16,7 @@
 /// held vertices as scripted), so writers and reports treat rods like cloth vertices.
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <type_traits>
@@ -115,8 +116,6 @@ class RodSimulator {
       b.first_vertex = rods.first[r];
       bodies_.push_back(std::move(b));
     }
-    held0_.resize(bodies_.size());
-    for (size_t r = 0; r < bodies_.size(); ++r) held0_[r] = bodies_[r].q;
     centre_.mass.resize(rods.num_vertices());
     centre_.dof.assign(rods.num_vertices(), Dof::free);
     for (int r = 0; r < rods.num_rods(); ++r) {
@@ -155,7 +154,7 @@ class RodSimulator {
       rep.newton.iterations = std::max(rep.newton.iterations, del[r].iterations);
       rep.newton.final_residual = std::max(rep.newton.final_residual, del[r].final_residual);
       if (del[r].status != Status::success)
-        return fail(rep, "integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message));
+        return rep.fail("integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message), centre_.t);
     }
     rep.newton.method = del.empty() ? "" : del[0].method;
     rep.newton.stop_reason = "every rod converged (iterations: the largest over the rods)";
@@ -163,14 +162,14 @@ class RodSimulator {
       ScopedTimer timer(rep.times, Stage::contact);
       rep.contact = contact_.resolve(*this);
     }
-    if (rep.contact.status != Status::success) return fail(rep, "contact response", rep.contact.status, rep.contact.message);
+    if (rep.contact.status != Status::success) return rep.fail("contact response", rep.contact.status, rep.contact.message, centre_.t);
     double stretch = 0;
     for (int r = 0; r < R; ++r) {
       Body& b = bodies_[r];
-      if (!b.d.allFinite()) return fail(rep, "contact response", Status::numerical_issue, fmt::format("rod {}: non-finite displacement", r));
+      if (!b.d.allFinite()) return rep.fail("contact response", Status::numerical_issue, fmt::format("rod {}: non-finite displacement", r), centre_.t);
       if (!b.model.admissible(b.q + b.d, b.frames))
-        return fail(rep, "contact response", Status::numerical_issue,
-                    fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r));
+        return rep.fail("contact response", Status::numerical_issue,
+                    fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r), centre_.t);
     }
 #pragma omp parallel for schedule(dynamic, 4) reduction(max : stretch)
     for (int r = 0; r < R; ++r) {
@@ -193,24 +192,23 @@ class RodSimulator {
   const Params& params() const { return prm_; }
   const Contact& contact() const { return contact_; }
 
-  /// Kinetic (translation and twist) and potential (elastic per term, gravity) energies.
+  /// Kinetic (translation and twist) and potential energies: the model's terms summed over
+  /// the rods (in the model's order), then gravity.
   EnergyReport energies() const {
     EnergyReport e;
-    double stretch = 0, bend = 0, twist = 0, other = 0, gravity = 0;
+    double gravity = 0;
     for (const Body& b : bodies_) {
       e.kinetic += 0.5 * b.v.dot(b.mass.cwiseProduct(b.v));
       EnergyTerms terms;
       b.model.energy_terms(b.q, b.frames, terms);
-      for (const auto& [name, value] : terms) {
-        if (name.find("stretch") != std::string::npos) stretch += value;
-        else if (name.find("bend") != std::string::npos) bend += value;
-        else if (name.find("twist") != std::string::npos) twist += value;
-        else other += value;
+      for (const auto& [name, value] : terms) {  // by name: rods of different families may differ (viscous or not)
+        auto it = std::find_if(e.terms.begin(), e.terms.end(), [&](const auto& t) { return t.first == name; });
+        if (it == e.terms.end()) e.terms.emplace_back(name, value);
+        else it->second += value;
       }
       gravity -= b.fext.dot(b.q);
     }
-    e.terms = {{"stretch", stretch}, {"bending", bend}, {"twist", twist}, {"gravity", gravity}};
-    if (other != 0) e.terms.emplace_back("other", other);
+    e.terms.emplace_back("gravity", gravity);
     for (const auto& [name, value] : e.terms) e.potential += value;
     return e;
   }
@@ -259,11 +257,11 @@ class RodSimulator {
     const int m = scene_.rods.motion[r];
     for (int i = 0; i < b.num_vertices(); ++i) {
       if (!b.fixed[4 * i]) continue;
-      const Eigen::Vector3d x0 = held0_[r].template segment<3>(4 * i);
+      const Eigen::Vector3d x0 = scene_.rods.rest[r].template segment<3>(4 * i);  // the rods start at rest
       b.target.template segment<3>(4 * i) = m >= 0 ? scene_.rods.motions[m].apply(x0, t1) : x0;
     }
     // The root edge's twist is held at its initial value relative to the transported frame.
-    if (b.fixed[3]) b.target[3] = held0_[r][3];
+    if (b.fixed[3]) b.target[3] = scene_.rods.rest[r][3];
   }
   void sync_centrelines() {
     const int V = scene_.rods.num_vertices();
@@ -275,20 +273,12 @@ class RodSimulator {
         centre_.v.segment<3>(3 * (b.first_vertex + i)) = b.v.template segment<3>(4 * i);
       }
   }
-  StepReport fail(StepReport& rep, std::string stage, Status s, std::string message) {
-    rep.status = s;
-    rep.failed_stage = std::move(stage);
-    rep.message = std::move(message);
-    rep.time = centre_.t + rep.dt;
-    return rep;
-  }
 
   Scene scene_;
   Params prm_;
   Integ integrator_;
   Contact contact_;
   std::vector<Body> bodies_;
-  std::vector<Eigen::VectorXd> held0_;  ///< initial DoFs (held roots move rigidly from there)
   State centre_;
   double dt_ = 0;
   int steps_ = 0;

@@ -116,22 +116,22 @@ class Simulator {
           ++rep.contact.pattern_updates;
         }
     }
-    if (rep.contact.status != Status::success) return fail(rep, "contact detection", rep.contact.status, rep.contact.message);
+    if (rep.contact.status != Status::success) return rep.fail("contact detection", rep.contact.status, rep.contact.message, state_.t);
 
     StepProblem problem{state_, dt, target_, scene_.spec.damping.mass, plan_, buffer_, matrix_, fixed_, analyzed_};
     const StepReport r = integrator_.step(energy_, contact_, linear_, problem);
     rep.newton = r.newton;
     rep.linear = r.linear;
     rep.times += r.times;
-    if (r.status != Status::success) return fail(rep, r.failed_stage, r.status, r.message);
+    if (r.status != Status::success) return rep.fail(r.failed_stage, r.status, r.message, state_.t);
     {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact.merge_end(contact_.end_step(state_, dt));
       if (rep.contact.status != Status::success)
-        return fail(rep, "contact response", rep.contact.status, rep.contact.message);
+        return rep.fail("contact response", rep.contact.status, rep.contact.message, state_.t);
     }
     if (!state_.x.allFinite() || !state_.v.allFinite())
-      return fail(rep, "integrator", Status::numerical_issue, "non-finite positions or velocities after the step");
+      return rep.fail("integrator", Status::numerical_issue, "non-finite positions or velocities after the step", state_.t);
     state_.t += dt;
     rep.time = state_.t;
     rep.energy = energies();
@@ -162,13 +162,6 @@ class Simulator {
   }
 
  private:
-  StepReport fail(StepReport& rep, std::string stage, Status s, std::string message) {
-    rep.status = s;
-    rep.failed_stage = std::move(stage);
-    rep.message = std::move(message);
-    rep.time = state_.t + rep.dt;
-    return rep;
-  }
 
   Scene scene_;
   Params prm_;

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "framework/timers.hpp"
@@ -177,6 +178,15 @@ struct StepReport {
   EnergyReport energy;
   StageTimes times;
   bool ok() const { return status == Status::success; }
+  /// Marks the step as failed in `stage` for `why`; its time is the end of the step that
+  /// failed (`step_start` + dt).
+  StepReport& fail(std::string stage, Status s, std::string why, double step_start) {
+    status = s;
+    failed_stage = std::move(stage);
+    message = std::move(why);
+    time = step_start + dt;
+    return *this;
+  }
 };
 
 }  // namespace weft

@@ -37,13 +37,13 @@ void write_json_file(const std::string& path, const Json& j) {
   f.commit();
 }
 
-void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const Eigen::VectorXd* velocity) {
-  AtomicFile f(path);
-  auto& s = f.stream();
-  const Eigen::Index nv = x.size() / 3, nf = F.rows();
+namespace {
+/// The VTK PolyData header of a piece, its points and their velocity (if any).
+void vtp_points(std::ostream& s, const Eigen::VectorXd& x, const Eigen::VectorXd* velocity, Eigen::Index lines, Eigen::Index polys) {
+  const Eigen::Index nv = x.size() / 3;
   s << "<?xml version=\"1.0\"?>\n"
        "<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n<PolyData>\n";
-  s << fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n", nv, nf);
+  s << fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n", nv, lines, polys);
   s << "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
   for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
   s << "</DataArray>\n</Points>\n";
@@ -52,6 +52,14 @@ void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::M
     for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", (*velocity)[3 * i], (*velocity)[3 * i + 1], (*velocity)[3 * i + 2]);
     s << "</DataArray>\n</PointData>\n";
   }
+}
+}  // namespace
+
+void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const Eigen::VectorXd* velocity) {
+  AtomicFile f(path);
+  auto& s = f.stream();
+  const Eigen::Index nf = F.rows();
+  vtp_points(s, x, velocity, 0, nf);
   s << "<Polys>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
   for (Eigen::Index k = 0; k < nf; ++k) s << fmt::format("{} {} {}\n", F(k, 0), F(k, 1), F(k, 2));
   s << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
@@ -78,17 +86,7 @@ void write_polylines_vtp(const std::string& path, const Eigen::VectorXd& x, cons
   auto& s = f.stream();
   const Eigen::Index nv = x.size() / 3;
   const size_t nl = first.empty() ? 0 : first.size() - 1;
-  s << "<?xml version=\"1.0\"?>\n"
-       "<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n<PolyData>\n";
-  s << fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n", nv, nl);
-  s << "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-  s << "</DataArray>\n</Points>\n";
-  if (velocity) {
-    s << "<PointData Vectors=\"velocity\">\n<DataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-    for (Eigen::Index i = 0; i < nv; ++i) s << fmt::format("{} {} {}\n", (*velocity)[3 * i], (*velocity)[3 * i + 1], (*velocity)[3 * i + 2]);
-    s << "</DataArray>\n</PointData>\n";
-  }
+  vtp_points(s, x, velocity, static_cast<Eigen::Index>(nl), 0);
   s << "<Lines>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
   for (Eigen::Index i = 0; i < nv; ++i) s << i << (i % 16 == 15 ? "\n" : " ");
   s << "\n</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";

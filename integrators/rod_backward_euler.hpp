@@ -146,9 +146,7 @@ class RodBackwardEuler {
         rep.message = fmt::format("no descent direction at Newton iteration {} (|f| = {:.3e})", it, f.norm());
         return rep;
       }
-      double newton_step = 0;
-      for (Eigen::Index i = 0; i + 2 < n; i += 4) newton_step = std::max(newton_step, dir.segment<3>(i).norm());
-      if (newton_step <= step_tol) {  // converged: the full (tiny) Newton step, below what E_inc can resolve
+      if (largest_move(dir) <= step_tol) {  // converged: the full (tiny) Newton step, below what E_inc can resolve
         b.d += dir;
         rep.iterations = it + 1;
         residual(b, b.d, h, f);
@@ -177,9 +175,7 @@ class RodBackwardEuler {
       b.d = trial;
       E = Et;
       rep.iterations = it + 1;
-      double moved = 0;
-      for (Eigen::Index i = 0; i + 2 < n; i += 4) moved = std::max(moved, (s * dir.segment<3>(i)).norm());
-      if (moved <= step_tol) {
+      if (s * largest_move(dir) <= step_tol) {
         residual(b, b.d, h, f);
         rep.final_residual = f.norm();
         rep.stop_reason = "position step below tolerance";
@@ -193,6 +189,12 @@ class RodBackwardEuler {
   }
 
  private:
+  /// Largest vertex displacement [m] of a DoF vector (the x entries 4i..4i+2).
+  static double largest_move(const Eigen::VectorXd& dq) {
+    double m = 0;
+    for (Eigen::Index i = 0; i + 2 < dq.size(); i += 4) m = std::max(m, dq.segment<3>(i).norm());
+    return m;
+  }
   Params prm_;
 };
 

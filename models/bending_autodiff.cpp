@@ -1,5 +1,6 @@
 #include "models/bending_autodiff.hpp"
 
+#include "models/autodiff_support.hpp"
 #include "models/bending_parallel.hpp"
 
 #include <unsupported/Eigen/AutoDiff>
@@ -15,17 +16,7 @@ using A1 = Eigen::AutoDiffScalar<D1>;  // value and first derivatives
 using D2 = Eigen::Matrix<A1, 12, 1>;
 using A2 = Eigen::AutoDiffScalar<D2>;  // forward over forward: second derivatives
 
-// Eigen's atan2 for AutoDiffScalar returns a dynamically sized derivative (a heap
-// allocation per call); this one keeps the fixed size and recurses through the nesting.
-double ad_atan2(double y, double x) { return std::atan2(y, x); }
-template <class Der>
-Eigen::AutoDiffScalar<Der> ad_atan2(const Eigen::AutoDiffScalar<Der>& y, const Eigen::AutoDiffScalar<Der>& x) {
-  using S = typename Der::Scalar;
-  const S value = ad_atan2(y.value(), x.value());
-  const S r2 = y.value() * y.value() + x.value() * x.value();
-  Der d = (y.derivatives() * x.value() - x.derivatives() * y.value()) / r2;
-  return Eigen::AutoDiffScalar<Der>(value, d);
-}
+using models::detail::ad_atan2;
 
 template <class S>
 using V3 = std::array<S, 3>;

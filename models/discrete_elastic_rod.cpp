@@ -10,6 +10,7 @@
 
 #include "framework/error.hpp"
 #include "framework/params.hpp"
+#include "models/autodiff_support.hpp"
 
 namespace weft::models {
 namespace {
@@ -35,17 +36,7 @@ using Mat8 = Eigen::Matrix<double, 8, 8>;
 using Vec11 = Eigen::Matrix<double, 11, 1>;
 using Mat11 = Eigen::Matrix<double, 11, 11>;
 
-// Eigen's atan2 for AutoDiffScalar returns a dynamically sized derivative; this one keeps
-// the fixed size and recurses through the nesting (as models/bending_autodiff.cpp).
-double ad_atan2(double y, double x) { return std::atan2(y, x); }
-template <class Der>
-Eigen::AutoDiffScalar<Der> ad_atan2(const Eigen::AutoDiffScalar<Der>& y, const Eigen::AutoDiffScalar<Der>& x) {
-  using S = typename Der::Scalar;
-  const S value = ad_atan2(y.value(), x.value());
-  const S r2 = y.value() * y.value() + x.value() * x.value();
-  Der d = (y.derivatives() * x.value() - x.derivatives() * y.value()) / r2;
-  return Eigen::AutoDiffScalar<Der>(value, d);
-}
+using detail::ad_atan2;
 
 template <class S>
 using V3 = std::array<S, 3>;

@@ -34,12 +34,6 @@ Closest closest(const Stencil& x) {
   }
 }
 
-Stencil at(const Stencil& x0, const Stencil& dx, double t) {
-  Stencil x;
-  for (int j = 0; j < 4; ++j) x[j] = x0[j] + t * dx[j];
-  return x;
-}
-
 double sign(double v) { return v > 0 ? 1.0 : (v < 0 ? -1.0 : 0.0); }
 
 template <Kind K>
@@ -48,35 +42,15 @@ Impact ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& o
   Stencil dx;
   for (int j = 0; j < 4; ++j) dx[j] = x1[j] - x0[j];
 
-  // Spanning vectors A, B and offset C (see ccd.hpp), each X(t) = X0 + t X1.
   constexpr bool vf = K == Kind::vertex_triangle;
-  const int o = vf ? 1 : 0;  // origin vertex
-  const int ia = vf ? 2 : 1, ja = vf ? 1 : 0, ib = 3, jb = vf ? 1 : 2, ic = vf ? 0 : 2;
-  const Vector3d A0 = x0[ia] - x0[ja], A1 = dx[ia] - dx[ja];
-  const Vector3d B0 = x0[ib] - x0[jb], B1 = dx[ib] - dx[jb];
-  const Vector3d C0 = x0[ic] - x0[o], C1 = dx[ic] - dx[o];
-
-  // f(t) = (A x B) . C, expanded in powers of t.
-  const Vector3d n00 = A0.cross(B0), n11 = A1.cross(B1), n01 = A1.cross(B0) + A0.cross(B1);
-  Cubic f;
-  f.c = {n00.dot(C0), n01.dot(C0) + n00.dot(C1), n11.dot(C0) + n01.dot(C1), n11.dot(C1)};
-
-  // delta = eta N + rounding allowance. The allowance bounds the error of the computed f
-  // against the f of the exact input: differences of coordinates (relative to their
-  // magnitude M), then products and sums of the three vectors; 64 eps is generous.
-  const double a_max = std::max(A0.norm(), (A0 + A1).norm()), b_max = std::max(B0.norm(), (B0 + B1).norm());
-  const double pa = A0.norm() + A1.norm(), pb = B0.norm() + B1.norm(), pc = C0.norm() + C1.norm();
-  double coord = 0;
-  for (int j = 0; j < 4; ++j) coord = std::max({coord, x0[j].cwiseAbs().maxCoeff(), x1[j].cwiseAbs().maxCoeff()});
-  const double eps = std::numeric_limits<double>::epsilon();
-  const double err = 64 * eps * (pa * pb * pc + coord * (pa * pb + pb * pc + pa * pc));
-  const double delta = eta * a_max * b_max * (1 + 1e-12) + err;
-
-  // Lipschitz constant of the distance in t.
-  double lip = 0;
+  const Coplanarity cp = coplanarity(x0, x1, dx, vf);
+  const Cubic& f = cp.f;
+  const Vector3d &A0 = cp.A0, &A1 = cp.A1, &B0 = cp.B0, &B1 = cp.B1;
+  const double err = cp.err;
+  // delta = eta N + rounding allowance.
+  const double delta = eta * cp.a_max * cp.b_max * (1 + 1e-12) + err;
   const int na = vf ? 1 : 2;
-  for (int i = 0; i < na; ++i)
-    for (int j = na; j < 4; ++j) lip = std::max(lip, (dx[i] - dx[j]).norm());
+  const double lip = distance_lipschitz(dx, na);
 
   Impact out;
   const Intervals candidates = band(f, delta);
@@ -84,7 +58,7 @@ Impact ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& o
     const double lo = candidates.iv[k][0], hi = candidates.iv[k][1];
     double t = lo;
     while (true) {
-      const Stencil xt = at(x0, dx, t);
+      const Stencil xt = stencil_at(x0, dx, t);
       const Closest c = closest<K>(xt);
       ++out.iterations;
       const double d = std::sqrt(c.distance_squared);
@@ -116,24 +90,8 @@ Impact ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& o
           out.normal = Vector3d::UnitZ();
         return out;
       }
-      // Safe step: the Lipschitz bound, or the time for which the fixed axis n = gap / d
-      // keeps A and B at least eta/2 apart (the separation along a fixed axis is a
-      // minimum of linear functions of t, one per pair of vertices of A and B), whichever
-      // is longer. The axis step makes motion parallel to the gap (sliding) cheap.
-      double step = lip > 0 ? (d - 0.5 * eta) / lip : std::numeric_limits<double>::infinity();
-      if (d > 0) {
-        const Vector3d n = c.gap / d;
-        double axis_step = std::numeric_limits<double>::infinity(), separation = axis_step;
-        for (int i = 0; i < na; ++i)
-          for (int j = na; j < 4; ++j) {
-            const double gap_ij = n.dot(xt[i] - xt[j]), rate = n.dot(dx[i] - dx[j]);
-            separation = std::min(separation, gap_ij);
-            if (rate < 0) axis_step = std::min(axis_step, (gap_ij - 0.5 * eta) / -rate);
-          }
-        // n separates A and B by d at t when the closest points are exact; check it
-        // rather than trust it, so that the step stays safe whatever the rounding.
-        if (separation >= 0.5 * eta) step = std::max(step, axis_step);
-      }
+      // Safe step (ccd.hpp, advancement_step): the axis step makes sliding cheap.
+      const double step = advancement_step(xt, dx, na, c.gap, d, lip, 0.5 * eta);
       t += step;
       if (!(t <= hi)) break;  // also for an infinite step: separated for the rest of the step
     }
@@ -141,6 +99,56 @@ Impact ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& o
   return out;
 }
 }  // namespace
+
+Stencil stencil_at(const Stencil& x0, const Stencil& dx, double t) {
+  Stencil x;
+  for (int j = 0; j < 4; ++j) x[j] = x0[j] + t * dx[j];
+  return x;
+}
+
+Coplanarity coplanarity(const Stencil& x0, const Stencil& x1, const Stencil& dx, bool vf) {
+  // Spanning vectors A, B and offset C (file comment of ccd.hpp), each X(t) = X0 + t X1.
+  const int o = vf ? 1 : 0;  // origin vertex
+  const int ia = vf ? 2 : 1, ja = vf ? 1 : 0, ib = 3, jb = vf ? 1 : 2, ic = vf ? 0 : 2;
+  Coplanarity cp;
+  cp.A0 = x0[ia] - x0[ja], cp.A1 = dx[ia] - dx[ja];
+  cp.B0 = x0[ib] - x0[jb], cp.B1 = dx[ib] - dx[jb];
+  const Vector3d C0 = x0[ic] - x0[o], C1 = dx[ic] - dx[o];
+  // f(t) = (A x B) . C, expanded in powers of t.
+  const Vector3d n00 = cp.A0.cross(cp.B0), n11 = cp.A1.cross(cp.B1), n01 = cp.A1.cross(cp.B0) + cp.A0.cross(cp.B1);
+  cp.f.c = {n00.dot(C0), n01.dot(C0) + n00.dot(C1), n11.dot(C0) + n01.dot(C1), n11.dot(C1)};
+  cp.a_max = std::max(cp.A0.norm(), (cp.A0 + cp.A1).norm());
+  cp.b_max = std::max(cp.B0.norm(), (cp.B0 + cp.B1).norm());
+  const double pa = cp.A0.norm() + cp.A1.norm(), pb = cp.B0.norm() + cp.B1.norm(), pc = C0.norm() + C1.norm();
+  double coord = 0;
+  for (int j = 0; j < 4; ++j) coord = std::max({coord, x0[j].cwiseAbs().maxCoeff(), x1[j].cwiseAbs().maxCoeff()});
+  cp.err = 64 * std::numeric_limits<double>::epsilon() * (pa * pb * pc + coord * (pa * pb + pb * pc + pa * pc));
+  return cp;
+}
+
+double distance_lipschitz(const Stencil& dx, int na) {
+  double lip = 0;
+  for (int i = 0; i < na; ++i)
+    for (int j = na; j < 4; ++j) lip = std::max(lip, (dx[i] - dx[j]).norm());
+  return lip;
+}
+
+double advancement_step(const Stencil& xt, const Stencil& dx, int na, const Vector3d& gap, double d, double lip, double margin) {
+  double step = lip > 0 ? (d - margin) / lip : std::numeric_limits<double>::infinity();
+  if (d > 0) {
+    const Vector3d n = gap / d;
+    double axis_step = std::numeric_limits<double>::infinity(), separation = axis_step;
+    for (int i = 0; i < na; ++i)
+      for (int j = na; j < 4; ++j) {
+        const double gap_ij = n.dot(xt[i] - xt[j]), rate = n.dot(dx[i] - dx[j]);
+        separation = std::min(separation, gap_ij);
+        if (rate < 0) axis_step = std::min(axis_step, (gap_ij - margin) / -rate);
+      }
+    // n separates the sides by d at t when the closest points are exact; check it.
+    if (separation >= margin) step = std::max(step, axis_step);
+  }
+  return step;
+}
 
 Impact vertex_triangle_ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& opt) {
   return ccd<Kind::vertex_triangle>(x0, x1, eta, opt);

@@ -65,6 +65,8 @@
 
 #include <array>
 
+#include "contact/detection/polynomial.hpp"
+
 namespace weft::contact::detection {
 
 /// Options of a CCD test.
@@ -92,5 +94,34 @@ Impact vertex_triangle_ccd(const Stencil& x0, const Stencil& x1, double eta, con
 
 /// Edge (a0, a1) against edge (b0, b1) over the step; stencil order (a0, a1, b0, b1).
 Impact edge_edge_ccd(const Stencil& x0, const Stencil& x1, double eta, const CcdOptions& opt = {});
+
+// ---- building blocks shared with the thick CCD of rods (contact/rods/thick_ccd.hpp) ----
+
+/// Positions at time t of a stencil moving linearly from x0 by dx.
+Stencil stencil_at(const Stencil& x0, const Stencil& dx, double t);
+
+/// The coplanarity cubic f(t) = (A x B) . C of a linearly moving stencil (file comment),
+/// its spanning vectors A(t) = A0 + t A1 and B(t) = B0 + t B1, their largest norms over the
+/// step, and a bound on the rounding error of the computed f (differences of coordinates,
+/// then products and sums of the three vectors; 64 eps is generous).
+struct Coplanarity {
+  Cubic f;
+  Eigen::Vector3d A0, A1, B0, B1;
+  double a_max = 0, b_max = 0, err = 0;
+};
+Coplanarity coplanarity(const Stencil& x0, const Stencil& x1, const Stencil& dx, bool vertex_triangle);
+
+/// Lipschitz constant in t of the distance between side a (the first `na` stencil
+/// vertices) and side b: the largest relative displacement of a vertex pair.
+double distance_lipschitz(const Stencil& dx, int na);
+
+/// A safe conservative-advancement step from configuration xt, where the sides are at
+/// distance d with closest-point difference `gap` (p^a - p^b): the longer of the Lipschitz
+/// step (d - margin) / lip and the time for which the separation along the fixed axis
+/// gap / d (a minimum of linear functions of t, one per vertex pair) stays >= margin; the
+/// axis step is checked rather than trusted (rounding of the closest points). Infinite
+/// when the sides never get closer.
+double advancement_step(const Stencil& xt, const Stencil& dx, int na, const Eigen::Vector3d& gap, double d, double lip,
+                        double margin);
 
 }  // namespace weft::contact::detection

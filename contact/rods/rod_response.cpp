@@ -22,9 +22,7 @@ std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<Rod
   group_rods.clear();
   // Contacts in ascending order within a group; groups numbered by their first contact,
   // whose smallest rod is the component's root.
-  std::vector<int> order(contacts.size());
-  std::iota(order.begin(), order.end(), 0);
-  for (int id : order) {
+  for (int id = 0; id < static_cast<int>(contacts.size()); ++id) {
     const int root = find(contacts[id].rods[0]);
     if (slot[root] < 0) {
       slot[root] = static_cast<int>(groups.size());

@@ -38,8 +38,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numeric>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "contact/coulomb.hpp"
@@ -66,10 +66,7 @@ inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "pene
 /// Parameters shared by every rod strategy (one runtime struct, spec 03 §16.2).
 struct RodContactParams {
   double friction = 0.2;       ///< Coulomb coefficient of rod-rod contacts (obstacles: their own `friction`)
-  double proximity = 0;        ///< [m] extra proximity radius of rod-rod detection
-  bool rod_ccd = true;         ///< rod-rod continuous detection (else proximity at the start of the step)
-  bool self_contact = true;
-  int self_skip = 2;           ///< same-rod edge pairs within this many edges are never contacts
+  RodDetectionParams detection{.rod_ccd = true};  ///< proximity radius, rod-rod CCD, self contact
   double contact_tol = 1e-8;   ///< [m] largest Fischer-Burmeister residual of a converged contact solve (1e-6 cm, the thesis)
   int gs_max = 150;            ///< Gauss-Seidel sweeps per contact solve
   double stretch_tol = 0.01;   ///< ADONIS: a rod whose edges extend more than this is re-linearised
@@ -81,10 +78,7 @@ struct RodContactParams {
   template <class V>
   void visit(V& v) {
     v.field("friction", friction, {Unit::none, Range::ge(0), "Coulomb coefficient of rod-rod contacts (obstacles use their own)"});
-    v.field("proximity", proximity, {Unit::length, Range::ge(0), "extra proximity radius of rod-rod detection"});
-    v.field("rod_ccd", rod_ccd, {Unit::none, Range::any(), "rod-rod continuous detection over the step (else proximity at its start)"});
-    v.field("self_contact", self_contact, {Unit::none, Range::any(), "detect contacts of a rod with itself"});
-    v.field("self_skip", self_skip, {Unit::none, Range::closed(1, 1000), "same-rod edge pairs within this many edges are never contacts"});
+    v.section("detection", detection);
     v.field("contact_tol", contact_tol, {Unit::length, Range::gt(0), "Fischer-Burmeister residual of a converged contact solve"});
     v.field("gs_max", gs_max, {Unit::none, Range::closed(1, 1000000), "Gauss-Seidel sweeps per contact solve"});
     v.field("stretch_tol", stretch_tol, {Unit::none, Range::gt(0), "ADONIS: re-linearise rods whose edges extend more than this"});
@@ -94,12 +88,18 @@ struct RodContactParams {
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
   }
+  static Checker validate(const RodContactParams& p) {
+    Checker c("contact");
+    c.merge(RodDetectionParams::validate(p.detection));
+    return c;
+  }
 };
 
 /// One contact of a step: where it acts, its basis and its compliance columns.
 struct RodContactRows {
   RodContact geometry;
   std::array<int, 2> rods{-1, -1};           ///< distinct rods touched (second -1 for self and obstacle contacts)
+  std::array<int, 2> slot{-1, -1};          ///< their positions in the group's rod list (set by the group solve)
   std::array<Eigen::MatrixXd, 2> G, P;       ///< per touched rod: n_r x 3 columns of G_k and of D G_k
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  ///< scripted part of u_k
   Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  ///< G_k^T D G_k
@@ -146,11 +146,6 @@ class RodResponse {
     for (int r = 0; r < R; ++r) del[r] = sys.body(r).d;
     contacts_.clear();
     stats_.clear();
-    RodDetectionParams dp;
-    dp.proximity = prm_.proximity;
-    dp.rod_ccd = prm_.rod_ccd;
-    dp.self_contact = prm_.self_contact;
-    dp.self_skip = prm_.self_skip;
     // Detection on q -> q + d_DEL, then again on q -> q + d after each response: the
     // constraints are linearised, and a later Newton iteration (or the response of other
     // contacts through D) may carry a point that had no contact into an obstacle or a rod.
@@ -170,7 +165,7 @@ class RodResponse {
       std::vector<RodContact> found;
       {
         ScopedTimer t(rep.detection_seconds);
-        found = detect_rod_contacts(curves, sys.obstacles(), sys.time(), sys.time() + sys.dt(), dp);
+        found = detect_rod_contacts(curves, sys.obstacles(), sys.time(), sys.time() + sys.dt(), prm_.detection);
       }
       ScopedTimer t(rep.response_seconds);
       size_t added = 0;
@@ -270,12 +265,17 @@ class RodResponse {
     return true;
   }
 
-  /// u_k = G_k^T x + b_k.
-  Eigen::Vector3d local(const RodContactRows& k, const std::vector<Eigen::VectorXd*>& x) const {
+  /// u_k = G_k^T x + b_k, x the displacements of the group's rods.
+  static Eigen::Vector3d local(const RodContactRows& k, const std::vector<Eigen::VectorXd>& x) {
     Eigen::Vector3d u = k.b;
     for (int side = 0; side < 2; ++side)
-      if (k.rods[side] >= 0) u += k.G[side].transpose() * *x[k.rods[side]];
+      if (k.rods[side] >= 0) u += k.G[side].transpose() * x[k.slot[side]];
     return u;
+  }
+  /// x += P_k r.
+  static void respond(const RodContactRows& k, const Eigen::Vector3d& r, std::vector<Eigen::VectorXd>& x) {
+    for (int side = 0; side < 2; ++side)
+      if (k.rods[side] >= 0) x[k.slot[side]] += k.P[side] * r;
   }
 
   /// P_k = D G_k and W_kk for the compliance of the strategy.
@@ -301,7 +301,11 @@ class RodResponse {
   /// Gauss-Seidel over the group's contacts: one sweep (spec 03 §10.3, incremental form).
   /// `mode`: 0 the full Coulomb problem, 1 the normal problem with the tangential
   /// multipliers fixed, 2 the friction problem with the normal multipliers fixed.
-  void sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, std::vector<Eigen::VectorXd*>& x, int mode) const {
+  /// Returns the largest change and the largest size of a multiplier in the sweep, both in
+  /// the units of u (times `scale`).
+  std::pair<double, double> sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, std::vector<Eigen::VectorXd>& x,
+                                  int mode) const {
+    double change = 0, size = 0;
     for (int id : ids) {
       RodContactRows& k = cs[id];
       const Eigen::Vector3d u = local(k, x);
@@ -331,15 +335,16 @@ class RodResponse {
         }
         r.tail<2>() = rt;
       }
-      const Eigen::Vector3d delta = r - k.lambda;
-      for (int side = 0; side < 2; ++side)
-        if (k.rods[side] >= 0) *x[k.rods[side]] += k.P[side] * delta;
+      respond(k, r - k.lambda, x);
+      change = std::max(change, (r - k.lambda).norm() * k.scale);
+      size = std::max(size, r.norm() * k.scale);
       k.lambda = r;
     }
+    return {change, size};
   }
 
   double contact_error(const std::vector<RodContactRows>& cs, const std::vector<int>& ids,
-                       const std::vector<Eigen::VectorXd*>& x) const {
+                       const std::vector<Eigen::VectorXd>& x) const {
     double e = 0;
     for (int id : ids) {
       const RodContactRows& k = cs[id];
@@ -352,10 +357,13 @@ class RodResponse {
   GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
     GroupStats st;
     st.contacts = static_cast<int>(ids.size());
-    const int R = sys.num_rods();
+    // The group's rods are ascending: a contact's rods are found by bisection.
+    auto slot_of = [&](int r) { return static_cast<int>(std::lower_bound(rods.begin(), rods.end(), r) - rods.begin()); };
+    for (int id : ids) {
+      RodContactRows& k = contacts_[id];
+      for (int side = 0; side < 2; ++side) k.slot[side] = k.rods[side] >= 0 ? slot_of(k.rods[side]) : -1;
+    }
     std::vector<Eigen::VectorXd> xs(rods.size());
-    std::vector<Eigen::VectorXd*> x(R, nullptr);
-    for (size_t i = 0; i < rods.size(); ++i) x[rods[i]] = &xs[i];
     // The first linearisation: K at q + d_DEL for every rod of the group.
     if constexpr (uses_stiffness)
       for (int r : rods)
@@ -365,7 +373,7 @@ class RodResponse {
           return st;
         }
     std::vector<int> rebuild = ids;
-    std::vector<unsigned char> fresh(R, 0);
+    std::vector<unsigned char> fresh(rods.size(), 0);  // re-linearised in this iteration, by slot
     for (int outer = 1;; ++outer) {
       st.outer = outer;
       for (int id : rebuild) build_compliance(sys, contacts_[id]);
@@ -381,31 +389,20 @@ class RodResponse {
           xs[i] -= F.col(0);
         }
       }
-      for (int id : ids) {
-        const RodContactRows& k = contacts_[id];
-        for (int side = 0; side < 2; ++side)
-          if (k.rods[side] >= 0) *x[k.rods[side]] += k.P[side] * k.lambda;
-      }
+      for (int id : ids) respond(contacts_[id], contacts_[id].lambda, xs);
       if constexpr (S == RodStrategy::staggered_projections) {
         // Alternate the contact problem (normal multipliers, friction fixed) and the
         // friction problem (tangential multipliers, normal fixed), each solved by GS to
         // the tolerance, until the friction multipliers stop changing.
+        std::vector<Eigen::Vector2d> before(ids.size());
         for (int sp = 0; sp < prm_.sp_max; ++sp) {
           ++st.sp_iterations;
           double beta_norm = 0, change = 0;
-          std::vector<Eigen::Vector2d> before(ids.size());
           for (size_t i = 0; i < ids.size(); ++i) before[i] = contacts_[ids[i]].lambda.tail<2>();
           for (int mode : {1, 2})
             for (int s = 0; s < prm_.gs_max; ++s) {
               ++st.sweeps;
-              std::vector<Eigen::Vector3d> old(ids.size());
-              for (size_t i = 0; i < ids.size(); ++i) old[i] = contacts_[ids[i]].lambda;
-              sweep(contacts_, ids, x, mode);
-              double d = 0, m = 0;
-              for (size_t i = 0; i < ids.size(); ++i) {
-                d = std::max(d, (contacts_[ids[i]].lambda - old[i]).norm() * contacts_[ids[i]].scale);
-                m = std::max(m, contacts_[ids[i]].lambda.norm() * contacts_[ids[i]].scale);
-              }
+              const auto [d, m] = sweep(contacts_, ids, xs, mode);
               if (d <= 1e-3 * prm_.contact_tol + 1e-12 * m) break;
             }
           for (size_t i = 0; i < ids.size(); ++i) {
@@ -414,15 +411,15 @@ class RodResponse {
           }
           if (change <= prm_.sp_tol * std::max(beta_norm, 1e-300)) break;
         }
-        st.residual = contact_error(contacts_, ids, x);
+        st.residual = contact_error(contacts_, ids, xs);
         st.unconverged = st.residual > prm_.contact_tol;
       } else {
         int sweeps = 0;
-        double err = contact_error(contacts_, ids, x);
+        double err = contact_error(contacts_, ids, xs);
         while (err > prm_.contact_tol && sweeps < prm_.gs_max) {
-          sweep(contacts_, ids, x, 0);
+          sweep(contacts_, ids, xs, 0);
           ++sweeps;
-          err = contact_error(contacts_, ids, x);
+          err = contact_error(contacts_, ids, xs);
         }
         st.sweeps += sweeps;
         st.residual = err;
@@ -447,13 +444,13 @@ class RodResponse {
             st.message = fmt::format("rod {}: M + h^2 H cannot be factorised at Newton iteration {}", r, outer);
             return st;
           }
-          fresh[r] = 1;
+          fresh[slot_of(r)] = 1;
           ++st.relinearized;
         }
         rebuild.clear();
         for (int id : ids) {
           const RodContactRows& k = contacts_[id];
-          if (fresh[k.rods[0]] || (k.rods[1] >= 0 && fresh[k.rods[1]])) rebuild.push_back(id);
+          if (fresh[k.slot[0]] || (k.slot[1] >= 0 && fresh[k.slot[1]])) rebuild.push_back(id);
         }
       }
     }

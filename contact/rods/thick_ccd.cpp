@@ -17,12 +17,6 @@ using Eigen::Vector3d;
 
 enum class Kind { vertex_triangle, edge_edge };
 
-Stencil at(const Stencil& x0, const Stencil& dx, double t) {
-  Stencil x;
-  for (int j = 0; j < 4; ++j) x[j] = x0[j] + t * dx[j];
-  return x;
-}
-
 Vector3d point(const Stencil& x, int first, double w) { return (1 - w) * x[first] + w * x[first + 1]; }
 
 // Closest points at one configuration: squared distance, (s, t) as in ThickImpact, p^a - p^b.
@@ -61,7 +55,7 @@ ThickImpact thick_ccd(const Stencil& x0, const Stencil& x1, double delta, double
     return out;
   };
   auto closest_at = [&](double t, Stencil& xt) {
-    xt = at(x0, dx, t);
+    xt = detection::stencil_at(x0, dx, t);
     ++out.iterations;
     return closest<K>(xt);
   };
@@ -72,29 +66,14 @@ ThickImpact thick_ccd(const Stencil& x0, const Stencil& x1, double delta, double
 
   constexpr bool vf = K == Kind::vertex_triangle;
   const int na = vf ? 1 : 2;  // vertices of side a
-  double lip = 0;
-  for (int i = 0; i < na; ++i)
-    for (int j = na; j < 4; ++j) lip = std::max(lip, (dx[i] - dx[j]).norm());
+  const double lip = detection::distance_lipschitz(dx, na);
   if (!(lip > 0)) return out;  // translating together: d stays d(0)
   const double d1 = std::sqrt(closest_at(1, xt).distance_squared);
   if (0.5 * (d0 + d1 - lip) > margin) return out;
 
-  // Candidate intervals from the line (plane) distance; coefficients as in ccd.cpp.
-  const int o = vf ? 1 : 0;
-  const int ia = vf ? 2 : 1, ja = vf ? 1 : 0, ib = 3, jb = vf ? 1 : 2, ic = vf ? 0 : 2;
-  const Vector3d A0 = x0[ia] - x0[ja], A1 = dx[ia] - dx[ja];
-  const Vector3d B0 = x0[ib] - x0[jb], B1 = dx[ib] - dx[jb];
-  const Vector3d C0 = x0[ic] - x0[o], C1 = dx[ic] - dx[o];
-  const Vector3d n00 = A0.cross(B0), n11 = A1.cross(B1), n01 = A1.cross(B0) + A0.cross(B1);
-  detection::Cubic f;
-  f.c = {n00.dot(C0), n01.dot(C0) + n00.dot(C1), n11.dot(C0) + n01.dot(C1), n11.dot(C1)};
-  const double a_max = std::max(A0.norm(), (A0 + A1).norm()), b_max = std::max(B0.norm(), (B0 + B1).norm());
-  const double pa = A0.norm() + A1.norm(), pb = B0.norm() + B1.norm(), pc = C0.norm() + C1.norm();
-  double coord = 0;
-  for (int j = 0; j < 4; ++j) coord = std::max({coord, x0[j].cwiseAbs().maxCoeff(), x1[j].cwiseAbs().maxCoeff()});
-  const double eps = std::numeric_limits<double>::epsilon();
-  const double err = 64 * eps * (pa * pb * pc + coord * (pa * pb + pb * pc + pa * pc));
-  const detection::Intervals candidates = detection::band(f, reach * a_max * b_max * (1 + 1e-12) + err);
+  // Candidate intervals from the line (plane) distance (ccd.hpp, coplanarity).
+  const detection::Coplanarity cp = detection::coplanarity(x0, x1, dx, vf);
+  const detection::Intervals candidates = detection::band(cp.f, reach * cp.a_max * cp.b_max * (1 + 1e-12) + cp.err);
 
   for (int k = 0; k < candidates.n; ++k) {
     const double hi = candidates.iv[k][1];
@@ -106,20 +85,7 @@ ThickImpact thick_ccd(const Stencil& x0, const Stencil& x1, double delta, double
         out.conservative = d > reach;
         return report(t, c, d);
       }
-      double step = (d - margin) / lip;
-      if (d > 0) {
-        // Separation along the fixed axis n: a minimum of linear functions of t. Checked
-        // rather than trusted (rounding of the closest points).
-        const Vector3d n = c.gap / d;
-        double axis_step = std::numeric_limits<double>::infinity(), separation = axis_step;
-        for (int i = 0; i < na; ++i)
-          for (int j = na; j < 4; ++j) {
-            const double gap_ij = n.dot(xt[i] - xt[j]), rate = n.dot(dx[i] - dx[j]);
-            separation = std::min(separation, gap_ij);
-            if (rate < 0) axis_step = std::min(axis_step, (gap_ij - margin) / -rate);
-          }
-        if (separation >= margin) step = std::max(step, axis_step);
-      }
+      const double step = detection::advancement_step(xt, dx, na, c.gap, d, lip, margin);
       t += step;
       if (!(t <= hi)) break;
     }
@@ -189,7 +155,7 @@ ThickImpact segment_segment_ccd(const Stencil& x0, const Stencil& x1, double thi
   if (out.hit) {
     Stencil dx, xt;
     for (int j = 0; j < 4; ++j) dx[j] = x1[j] - x0[j];
-    xt = at(x0, dx, out.toi);
+    xt = detection::stencil_at(x0, dx, out.toi);
     const Vector3d g0 = point(x0, 0, out.s) - point(x0, 2, out.t);
     const Vector3d v_rel = point(dx, 0, out.s) - point(dx, 2, out.t);
     out.normal = segment_contact_normal(xt, out.s, out.t, out.distance, {g0, Vector3d(-v_rel)});
