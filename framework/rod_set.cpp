@@ -19,11 +19,14 @@ Eigen::Vector3d orthogonal(const Eigen::Vector3d& a) {
 }
 
 /// Centreline of one rod from `root` along the unit `axis`: straight, or a helix of radius
-/// R and pitch p whose first point is the root. Vertices are equally spaced in arc length.
-std::vector<Eigen::Vector3d> centreline(const RodSpec& f, const Eigen::Vector3d& root, const Eigen::Vector3d& axis) {
+/// R and pitch p whose first point is the root, its axis offset from the root along the
+/// direction at angle `phase` about `axis` from orthogonal(axis). Vertices are equally
+/// spaced in arc length.
+std::vector<Eigen::Vector3d> centreline(const RodSpec& f, const Eigen::Vector3d& root, const Eigen::Vector3d& axis, double phase = 0) {
   std::vector<Eigen::Vector3d> x(f.vertices);
   const double R = f.curl_radius, p = f.curl_pitch;
-  const Eigen::Vector3d e1 = orthogonal(axis), e2 = axis.cross(e1);
+  const Eigen::Vector3d a1 = orthogonal(axis), a2 = axis.cross(a1);
+  const Eigen::Vector3d e1 = std::cos(phase) * a1 + std::sin(phase) * a2, e2 = axis.cross(e1);
   const double turn = std::sqrt(std::pow(2 * std::numbers::pi * R, 2) + p * p);  // arc length per turn
   for (int i = 0; i < f.vertices; ++i) {
     const double s = f.length * i / (f.vertices - 1);
@@ -59,8 +62,10 @@ RodSet build_rods(const SceneSpec& spec) {
     }
     const Eigen::Vector3d axis = f.direction.normalized();
     std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> roots;  // (root, growth axis)
+    std::vector<double> phases;                                       // helix phase per rod
     if (f.shape == RodShape::sphere_hair) {
-      // Area-uniform roots on the cap: cos(polar angle) uniform in [cos(coverage), 1].
+      // Area-uniform roots on the cap: cos(polar angle) uniform in [cos(coverage), 1]; curls
+      // with a uniformly random phase about their normal.
       std::mt19937_64 rng(static_cast<std::uint64_t>(f.seed));
       std::uniform_real_distribution<double> u01(0.0, 1.0);
       const Eigen::Vector3d e1 = orthogonal(axis), e2 = axis.cross(e1);
@@ -70,6 +75,7 @@ RodSet build_rods(const SceneSpec& spec) {
         const double az = 2 * std::numbers::pi * u01(rng);
         const Eigen::Vector3d n = c * axis + sn * (std::cos(az) * e1 + std::sin(az) * e2);
         roots.emplace_back(f.sphere_center + (f.sphere_radius + f.material.radius) * n, n);
+        phases.push_back(2 * std::numbers::pi * u01(rng));
       }
     } else {
       if (f.count > 1 && !(f.spread.norm() > 1e-12)) {
@@ -85,8 +91,9 @@ RodSet build_rods(const SceneSpec& spec) {
       errors.push_back(fmt::format("{}.curl_radius = {}: only read for shape = helix or sphere_hair", p, f.curl_radius));
     const bool moving = f.root_held != RodRoot::free && !f.motion.is_static();
     if (moving) set.motions.push_back(f.motion);
-    for (const auto& [root, dir] : roots) {
-      set.rest.push_back(interleave(centreline(f, root, dir)));
+    for (size_t r = 0; r < roots.size(); ++r) {
+      const auto& [root, dir] = roots[r];
+      set.rest.push_back(interleave(centreline(f, root, dir, phases.empty() ? 0.0 : phases[r])));
       set.first.push_back(set.first.back() + f.vertices);
       set.family.push_back(static_cast<int>(k));
       set.root_held.push_back(f.root_held);

@@ -32,7 +32,7 @@ inline constexpr std::array<std::string_view, 3> rod_root_names = {"free", "vert
 enum class RodShape {
   straight,     ///< `count` parallel straight rods from `root` along `direction`, spaced by `spacing` along `spread`
   helix,        ///< like straight, each a helix of `curl_radius` and `curl_pitch` about `direction`
-  sphere_hair,  ///< `count` rods rooted on a sphere (`sphere_center`, `sphere_radius`), over the cap within `coverage_angle` of `direction`, growing along the normal; helices when `curl_radius` > 0
+  sphere_hair,  ///< `count` rods rooted on a sphere (`sphere_center`, `sphere_radius`), area-uniformly over the cap within `coverage_angle` of `direction`, growing along the normal; helices about the normal with a random phase when `curl_radius` > 0
 };
 inline constexpr std::array<std::string_view, 3> rod_shape_names = {"straight", "helix", "sphere_hair"};
 

@@ -14,17 +14,6 @@
 
 namespace weft {
 
-Eigen::Vector3d Motion::apply(const Eigen::Vector3d& x0, double t) const {
-  const double tau = std::clamp(t, start, std::max(start, end)) - start;
-  Eigen::Vector3d x = x0 + velocity * tau;
-  const double angle = angular_velocity.norm() * tau;
-  if (angle > 0) {
-    const Eigen::AngleAxisd R(angle, angular_velocity.normalized());
-    x = center + velocity * tau + R * (x0 - center);
-  }
-  return x;
-}
-
 Checker ShellMaterial::validate(const std::string& path) const {
   Checker c(path);
   c.require(density > 0, "density", density, "> 0").require(thickness > 0, "thickness", thickness, "> 0");
@@ -203,6 +192,32 @@ void Scene::constrained_positions(double t, const State& s, Eigen::VectorXd& tar
 
 namespace {
 
+/// Obstacle CCD reads a motion's single-phase fields over a step (contact/impulse.cpp,
+/// contact/rods/rod_obstacle_detection.cpp); for a multi-phase motion they hold its envelope
+/// (framework/motion.hpp), a sound bound only when the centre stays put and, for a sphere,
+/// when the envelope's axis misses the sphere's centre unless every phase's axis hits it.
+Checker check_obstacle_phases(const ObstacleSpec& o, const std::string& path) {
+  Checker c(path);
+  const Motion& m = o.motion;
+  if (!m.multi_phase()) return c;
+  for (size_t k = 0; k < m.phases.size(); ++k)
+    c.require(m.phases[k].velocity.isZero(), fmt::format("phases.{}.velocity", k),
+              fmt::format("[{}]", fmt::join(m.phases[k].velocity.data(), m.phases[k].velocity.data() + 3, ", ")),
+              "zero for an obstacle: a multi-phase obstacle motion may only rotate about `center` (its CCD bounds the "
+              "motion by one fixed centre)");
+  if (o.shape != ObstacleShape::sphere) return c;
+  const Eigen::Vector3d offset = o.center - m.center;
+  Eigen::Vector3d fastest = Eigen::Vector3d::Zero();
+  for (const MotionPhase& p : m.phases)
+    if (p.angular_velocity.norm() > fastest.norm()) fastest = p.angular_velocity;
+  if (offset.cross(fastest).norm() != 0) return c;
+  for (size_t k = 0; k < m.phases.size(); ++k)
+    c.require(offset.cross(m.phases[k].angular_velocity).norm() == 0, fmt::format("phases.{}.angular_velocity", k),
+              fmt::format("[{}]", fmt::join(m.phases[k].angular_velocity.data(), m.phases[k].angular_velocity.data() + 3, ", ")),
+              "an axis through the sphere's centre, as the fastest phase's (or move `center` off that axis)");
+  return c;
+}
+
 void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
   Checker c;
   const double frame = 1.0 / s.time.frame_rate;
@@ -239,7 +254,7 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
       const auto& pin = cl.pins[q];
       const std::string pp = fmt::format("{}.pins.{}", p, q);
       if (pin.vertices.empty() && !pin.has_box()) c.fail(pp + ": give `vertices` or a box (`box_min` <= `box_max`)");
-      c.require(pin.motion.end >= pin.motion.start, pp + ".motion.end", pin.motion.end, ">= motion.start");
+      c.merge(pin.motion.validate(pp + ".motion"));
     }
   }
   for (size_t k = 0; k < s.obstacles.size(); ++k) {
@@ -249,8 +264,10 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
       c.require(o.normal.norm() > 1e-12, p + ".normal", fmt::format("[{}]", fmt::join(o.normal.data(), o.normal.data() + 3, ", ")),
                 "a nonzero vector");
     if (o.shape == ObstacleShape::mesh) c.require(!o.file.empty(), p + ".file", "\"\"", "a path to an OBJ file when shape = mesh");
-    c.require(o.motion.end >= o.motion.start, p + ".motion.end", o.motion.end, ">= motion.start");
+    c.merge(o.motion.validate(p + ".motion"));
+    c.merge(check_obstacle_phases(o, p + ".motion"));
   }
+  for (size_t k = 0; k < s.rods.size(); ++k) c.merge(s.rods[k].motion.validate(fmt::format("rods.{}.motion", k)));
   errors.insert(errors.end(), c.violations().begin(), c.violations().end());
 }
 
@@ -324,6 +341,11 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
   }
   validate_spec(scene.spec, errors);
   if (!errors.empty()) throw ConfigError(header, errors);
+  // Multi-phase motions: the single-phase fields carry the envelope (framework/motion.hpp).
+  for (ClothSpec& cl : scene.spec.cloths)
+    for (PinSpec& pin : cl.pins) pin.motion.set_envelope();
+  for (ObstacleSpec& o : scene.spec.obstacles) o.motion.set_envelope();
+  for (RodSpec& f : scene.spec.rods) f.motion.set_envelope();
 
   // Meshes, concatenated.
   std::vector<MeshData> parts;

@@ -1,0 +1,170 @@
+// The hair balls of thesis §9.2 (scenes/hairball_*.json, spec 03 §14.2): the sphere_hair
+// generator seeds curly rods uniformly over half the sphere; the held roots follow the
+// sphere's multi-phase motion exactly; a small hair ball runs with rod-rod and rod-sphere
+// contacts and without penetrating the sphere; slow: the 250-rod ball under ADONIS at 10 ms
+// through the first rotation's start and stop (V-21, reduced).
+#include <doctest/doctest.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <tuple>
+
+#include "contact/obstacle_penalty.hpp"
+#include "contact/rods/rod_verify.hpp"
+#include "policies/registry.hpp"
+
+using namespace weft;
+using Eigen::Vector3d;
+
+namespace {
+
+std::string scene_path(const std::string& name) {
+  const char* root = std::getenv("WEFT_SOURCE_DIR");
+  REQUIRE(root);
+  return std::string(root) + "/scenes/" + name;
+}
+
+std::vector<Vector3d> positions(const State& s) {
+  std::vector<Vector3d> x(s.num_vertices());
+  for (int i = 0; i < s.num_vertices(); ++i) x[i] = s.position(i);
+  return x;
+}
+
+}  // namespace
+
+TEST_SUITE("rods") {
+  TEST_CASE("hairball: the scenes seed curly rods of 30 vertices uniformly over half the sphere") {
+    for (const auto& c : {std::tuple{"hairball_250.json", 250, 0.045}, std::tuple{"hairball_1000.json", 1000, 0.09},
+                          std::tuple{"hairball_2000.json", 2000, 0.09}}) {
+      const std::string name = std::get<0>(c);
+      const int count = std::get<1>(c);
+      const double R = std::get<2>(c);
+      CAPTURE(name);
+      const Scene s = load_scene(scene_path(name));
+      REQUIRE(s.rods.num_rods() == count);
+      REQUIRE(s.spec.obstacles.size() == 1);
+      const ObstacleSpec& sphere = s.spec.obstacles[0];
+      CHECK(sphere.radius == doctest::Approx(R));
+      CHECK(sphere.friction == 0.1);
+      const RodSpec& f = s.spec.rods[0];
+      CHECK(f.material.radius == doctest::Approx(37e-6));
+      CHECK(f.material.youngs_modulus == doctest::Approx(3.9e8));
+      CHECK(f.material.shear_modulus == doctest::Approx(3.4e8));
+      CHECK(f.material.density == doctest::Approx(1320));
+      CHECK(f.material.viscosity == doctest::Approx(5e6));
+      CHECK(s.spec.gravity.z() == doctest::Approx(-9.81));
+      CHECK(s.spec.time.dt == 0.01);
+      // Three rotations about x, y, z alternating with rests; the sphere and the roots share them.
+      REQUIRE(f.motion.phases.size() == 3);
+      for (int k = 0; k < 3; ++k) {
+        CHECK(f.motion.phases[k].angular_velocity.normalized() == Vector3d::Unit(k));
+        CHECK(f.motion.phases[k].angular_velocity == sphere.motion.phases[k].angular_velocity);
+        CHECK(f.motion.phases[k].start == sphere.motion.phases[k].start);
+        CHECK(f.motion.phases[k].end == sphere.motion.phases[k].end);
+      }
+      int upper = 0;
+      for (int r = 0; r < count; ++r) {
+        REQUIRE(s.rods.rod_vertices(r) == 30);
+        const Vector3d root = s.rods.rest[r].segment<3>(0);
+        const Vector3d n = (root - sphere.center).normalized();
+        CHECK((root - sphere.center).norm() == doctest::Approx(R + 37e-6).epsilon(1e-12));
+        CHECK(n.z() >= 0);
+        upper += n.z() > 0.5;  // the cap within 60 degrees of the pole: half the area of the half sphere
+        const Vector3d x1 = s.rods.rest[r].segment<3>(4);
+        CHECK((x1 - root).dot(n) > 0);  // growing outwards
+      }
+      const double share = static_cast<double>(upper) / count;
+      CHECK(std::abs(share - 0.5) < 4 * std::sqrt(0.25 / count));  // area-uniform seeding, 4 sigma
+    }
+  }
+
+  TEST_CASE("hairball: the roots follow the sphere's multi-phase motion exactly") {
+    // Three rods through every phase and rest of the scripting (3.2 s at 20 ms). Linear
+    // compliance: ADONIS currently aborts on these balls (its re-linearisation evaluates the
+    // rod at an inadmissible q + d, contact/rods/rod_response.hpp; the slow test below).
+    auto sim = make_simulator(
+        load_scene(scene_path("hairball_250.json"), {"rods.0.count=3", "time.dt=0.02", "time.frame_rate=50", "combo=rods_linear"}));
+    const Scene& scene = sim->scene();
+    const ObstacleSpec& sphere = scene.spec.obstacles[0];
+    const int steps = static_cast<int>(std::lround(scene.spec.time.duration / scene.spec.time.dt));
+    double turned = 0;
+    for (int k = 0; k < steps; ++k) {
+      const StepReport rep = sim->step();
+      REQUIRE_MESSAGE(rep.ok(), rep.message);
+      const double t = sim->state().t;
+      const contact::ObstaclePose pose = contact::ObstaclePose::at(sphere, t);
+      for (int r = 0; r < scene.rods.num_rods(); ++r)
+        for (int i = 0; i < 2; ++i) {  // the held root edge
+          const Vector3d rest = scene.rods.rest[r].segment<3>(4 * i);
+          const Vector3d x = sim->state().position(scene.rods.first[r] + i);
+          CAPTURE(t);
+          CHECK((x - sphere.motion.apply(rest, t)).norm() < 1e-14);
+          // Fixed in the sphere's body frame.
+          CHECK((pose.rotation.transpose() * (x - pose.center) - (rest - sphere.center)).norm() < 1e-14);
+        }
+      turned = std::max(turned, Eigen::AngleAxisd(pose.rotation).angle());
+    }
+    // At the end: the product of the three quarter turns, in time order (world axes).
+    CHECK(turned > 1.5);
+    const Eigen::Matrix3d expected = (Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitZ()) * Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitY()) *
+                                      Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitX()))
+                                         .toRotationMatrix();
+    CHECK((contact::ObstaclePose::at(sphere, sim->state().t).rotation - expected).norm() < 1e-13);
+  }
+
+  TEST_CASE("hairball: a small hair ball runs with contacts and without penetrating the sphere") {
+    // 24 rods on the 9 cm sphere; the first quarter turn starts at once. Linear compliance
+    // (ADONIS aborts, see above).
+    auto sim = make_simulator(load_scene(scene_path("hairball_250.json"),
+                                         {"rods.0.count=24", "time.duration=0.1", "rods.0.motion.phases.0.start=0",
+                                          "obstacles.0.motion.phases.0.start=0", "combo=rods_linear"}));
+    const Scene& scene = sim->scene();
+    const std::vector<double> radius(scene.rods.num_rods(), scene.spec.rods[0].material.radius);
+    int rod_contacts = 0, sphere_contacts = 0;
+    for (int k = 0; k < 10; ++k) {
+      const StepReport rep = sim->step();
+      CAPTURE(k);
+      REQUIRE_MESSAGE(rep.ok(), rep.message);
+      rod_contacts += rep.contact.rod_contacts;
+      sphere_contacts += rep.contact.obstacle_contacts;
+      CHECK(contact::rods::count_obstacle_penetrations(positions(sim->state()), scene.rods.first, radius, scene.spec.obstacles,
+                                                       sim->state().t, 1e-7, 3) == 0);
+      CHECK(rep.contact.max_stretch < 0.5);
+    }
+    MESSAGE("24 rods, 10 steps: " << rod_contacts << " rod-rod and " << sphere_contacts << " rod-sphere contacts");
+    CHECK(rod_contacts > 0);
+    CHECK(sphere_contacts > 0);
+  }
+}
+
+TEST_SUITE("slow") {
+  TEST_CASE("hairball: 250 rods under ADONIS at 10 ms stay stable through a rotation start and stop") {
+    // V-21 reduced: the first quarter turn starts at 0.2 s and stops at 0.7 s. Currently
+    // aborts at step 4: ADONIS re-linearises a rod at an inadmissible q + d (a broken
+    // invariant in DiscreteElasticRod::evaluate; contact/rods/rod_response.hpp must check
+    // admissibility before relinearize).
+    auto sim = make_simulator(load_scene(scene_path("hairball_250.json"), {"time.duration=0.8"}));
+    const Scene& scene = sim->scene();
+    double strain = 0;
+    long long contacts = 0;
+    for (int k = 0; k < 80; ++k) {
+      const StepReport rep = sim->step();
+      CAPTURE(k);
+      REQUIRE_MESSAGE(rep.ok(), rep.message);
+      REQUIRE(sim->state().x.allFinite());
+      contacts += rep.contact.contacts;
+      for (int r = 0; r < scene.rods.num_rods(); ++r)
+        for (int i = 0; i + 1 < scene.rods.rod_vertices(r); ++i) {
+          const double l0 = (scene.rods.rest[r].segment<3>(4 * i + 4) - scene.rods.rest[r].segment<3>(4 * i)).norm();
+          const double l = (sim->state().position(scene.rods.first[r] + i + 1) - sim->state().position(scene.rods.first[r] + i)).norm();
+          strain = std::max(strain, std::abs(l / l0 - 1));
+        }
+    }
+    MESSAGE("250 rods, 80 steps at 10 ms: " << contacts / 80.0 << " contacts per step, max edge strain " << strain);
+    CHECK(strain < 0.5);
+    CHECK(contacts > 0);
+  }
+}
