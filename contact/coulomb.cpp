@@ -15,26 +15,6 @@ using Eigen::Vector3d;
 
 namespace {
 
-/// phi_FB(r, u) as a vector (file comment of coulomb.hpp).
-Vector3d fb_vector(const Vector3d& r, const Vector3d& u, double mu, double s) {
-  if (!(mu > 0)) {
-    const double a = s * r[0], c = u[0];
-    return Vector3d(a + c - std::hypot(a, c), s * r[1], s * r[2]);
-  }
-  const Vector2d ut = u.tail<2>();
-  const Vector3d x(s * mu * r[0], s * r[1], s * r[2]);
-  const Vector3d y((u[0] + mu * ut.norm()) / mu, ut[0], ut[1]);
-  const double z0 = x.squaredNorm() + y.squaredNorm();
-  const Vector2d zb = 2.0 * (x[0] * x.tail<2>() + y[0] * y.tail<2>());
-  const double nz = zb.norm();
-  const Vector2d dir = nz > 0 ? Vector2d(zb / nz) : Vector2d(1, 0);
-  const double wp = std::sqrt(std::max(0.0, z0 + nz)), wm = std::sqrt(std::max(0.0, z0 - nz));
-  Vector3d root;
-  root[0] = 0.5 * (wp + wm);
-  root.tail<2>() = 0.5 * (wp - wm) * dir;
-  return x + y - root;
-}
-
 CoulombRegime classify(const Vector3d& r, double mu) {
   if (!(r[0] > 0)) return CoulombRegime::take_off;
   if (!(mu > 0)) return CoulombRegime::slide;
@@ -48,7 +28,7 @@ struct Candidate {
 
 /// Newton on phi_FB from r0. \returns the best iterate.
 Candidate newton(const Matrix3d& W, const Vector3d& b, double mu, double s, Vector3d r, double tol, int max_it, int& iterations) {
-  auto F = [&](const Vector3d& q) { return fb_vector(q, W * q + b, mu, s); };
+  auto F = [&](const Vector3d& q) { return fischer_burmeister_vector(q, W * q + b, mu, s); };
   Vector3d f = F(r);
   double f2 = f.squaredNorm();
   const double rscale = std::max(b.norm() / s, std::numeric_limits<double>::min());
@@ -142,13 +122,32 @@ Candidate enumerate(const Matrix3d& W, const Vector3d& b, double mu, double s, i
 
 }  // namespace
 
+Vector3d fischer_burmeister_vector(const Vector3d& r, const Vector3d& u, double mu, double s) {
+  if (!(mu > 0)) {
+    const double a = s * r[0], c = u[0];
+    return Vector3d(a + c - std::hypot(a, c), s * r[1], s * r[2]);
+  }
+  const Vector2d ut = u.tail<2>();
+  const Vector3d x(s * mu * r[0], s * r[1], s * r[2]);
+  const Vector3d y((u[0] + mu * ut.norm()) / mu, ut[0], ut[1]);
+  const double z0 = x.squaredNorm() + y.squaredNorm();
+  const Vector2d zb = 2.0 * (x[0] * x.tail<2>() + y[0] * y.tail<2>());
+  const double nz = zb.norm();
+  const Vector2d dir = nz > 0 ? Vector2d(zb / nz) : Vector2d(1, 0);
+  const double wp = std::sqrt(std::max(0.0, z0 + nz)), wm = std::sqrt(std::max(0.0, z0 - nz));
+  Vector3d root;
+  root[0] = 0.5 * (wp + wm);
+  root.tail<2>() = 0.5 * (wp - wm) * dir;
+  return x + y - root;
+}
+
 double coulomb_scale(const Matrix3d& W) {
   const double t = W.trace() / 3;
   return t > 0 && std::isfinite(t) ? t : 1.0;
 }
 
 double fischer_burmeister(const Vector3d& r, const Vector3d& u, double mu, double scale) {
-  return fb_vector(r, u, mu, scale).norm();
+  return fischer_burmeister_vector(r, u, mu, scale).norm();
 }
 
 CoulombResult solve_coulomb(const Matrix3d& W, const Vector3d& b, double mu, const Vector3d& guess, const CoulombOptions& opt) {

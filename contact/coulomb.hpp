@@ -69,6 +69,9 @@ struct CoulombResult {
 /// The scale s = tr(W) / 3 of the residual (1 when W has no positive trace).
 double coulomb_scale(const Eigen::Matrix3d& W);
 
+/// phi_FB(r, u) as a vector (file comment); `scale` as `coulomb_scale`. Its norm is the residual.
+Eigen::Vector3d fischer_burmeister_vector(const Eigen::Vector3d& r, const Eigen::Vector3d& u, double mu, double scale);
+
 /// |phi_FB| of a response r and the local velocity u = W r + b (file comment); `scale` as
 /// `coulomb_scale`.
 double fischer_burmeister(const Eigen::Vector3d& r, const Eigen::Vector3d& u, double mu, double scale);

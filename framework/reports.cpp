@@ -115,6 +115,8 @@ Json to_json(const ContactReport& r) {
   put("max_outer_iterations", r.max_outer_iterations);
   put("relinearized", r.relinearized);
   put("capped_groups", r.capped_groups);
+  put("contact_newton", r.contact_newton);
+  put("contact_fallbacks", r.contact_fallbacks);
   put("max_stretch", r.max_stretch);
   put("redetections", r.redetections);
   if (!r.message.empty()) j["message"] = r.message;

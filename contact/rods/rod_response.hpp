@@ -27,6 +27,8 @@
 ///   loop:  d_u = d (first iteration: the DEL solution) or d - D f(d) (later ones)
 ///          x = d_u + sum_k P_k lambda_k;  GS sweeps (or staggered projections) until the
 ///          largest Fischer-Burmeister residual is below `contact_tol` or `gs_max` sweeps
+///          `solver = newton`: then semismooth Newton on the group's Fischer-Burmeister system
+///            (rod_group_solver.hpp) until the residual is below `contact_tol`, or the step fails
 ///          d = x;  stop unless the strategy re-linearises and some rod is over-stretched
 ///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
@@ -38,12 +40,15 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numeric>
+#include <random>
 #include <string_view>
 #include <utility>
 #include <vector>
 
 #include "contact/coulomb.hpp"
 #include "contact/rods/rod_detection.hpp"
+#include "contact/rods/rod_group_solver.hpp"
 #include "framework/params.hpp"
 #include "framework/scene.hpp"
 #include "framework/status.hpp"
@@ -63,6 +68,13 @@ enum class GapTerm {
 };
 inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "penetration", "full"};
 
+/// The solver of a group's contact problem (rod_group_solver.hpp).
+enum class RodContactSolver {
+  gauss_seidel,  ///< Gauss-Seidel sweeps up to `gs_max` (the thesis): may stop above `contact_tol`
+  newton,        ///< Gauss-Seidel up to `gs_max`, then semismooth Newton to `contact_tol` (the step fails if it cannot)
+};
+inline constexpr std::array<std::string_view, 2> rod_contact_solver_names = {"gauss_seidel", "newton"};
+
 /// Parameters shared by every rod strategy (one runtime struct, spec 03 §16.2).
 struct RodContactParams {
   double friction = 0.2;       ///< Coulomb coefficient of rod-rod contacts (obstacles: their own `friction`)
@@ -75,6 +87,10 @@ struct RodContactParams {
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
+  RodContactSolver solver = RodContactSolver::gauss_seidel;  ///< the contact solve of a group
+  int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
+  bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
+  int order_seed = 0;          ///< 0: contacts in detection order within a group; otherwise a shuffle with this seed (ordering tests)
   template <class V>
   void visit(V& v) {
     v.field("friction", friction, {Unit::none, Range::ge(0), "Coulomb coefficient of rod-rod contacts (obstacles use their own)"});
@@ -87,6 +103,12 @@ struct RodContactParams {
     v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
+    v.choice("solver", solver, rod_contact_solver_names,
+             "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
+    v.field("solver_max", solver_max, {Unit::none, Range::closed(1, 100000), "newton: Newton steps per contact solve after the Gauss-Seidel sweeps"});
+    v.field("groups", groups, {Unit::none, Range::any(), "solve contact groups separately (false: one monolithic group of every contacted rod)"});
+    v.field("order_seed", order_seed,
+            {Unit::none, Range::ge(0), "0: contacts in detection order inside a group; otherwise shuffled with this seed (ordering-independence tests)"});
   }
   static Checker validate(const RodContactParams& p) {
     Checker c("contact");
@@ -95,22 +117,10 @@ struct RodContactParams {
   }
 };
 
-/// One contact of a step: where it acts, its basis and its compliance columns.
-struct RodContactRows {
-  RodContact geometry;
-  std::array<int, 2> rods{-1, -1};           ///< distinct rods touched (second -1 for self and obstacle contacts)
-  std::array<int, 2> slot{-1, -1};          ///< their positions in the group's rod list (set by the group solve)
-  std::array<Eigen::MatrixXd, 2> G, P;       ///< per touched rod: n_r x 3 columns of G_k and of D G_k
-  Eigen::Vector3d b = Eigen::Vector3d::Zero();  ///< scripted part of u_k
-  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  ///< G_k^T D G_k
-  Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
-  double mu = 0;
-  double scale = 1;                          ///< coulomb_scale(W)
-};
-
 /// Statistics of one group's solve.
 struct GroupStats {
   int contacts = 0, outer = 0, sweeps = 0, relinearized = 0, sp_iterations = 0;
+  int newton = 0, fallbacks = 0;  ///< Newton contact solver: steps, and steps taken by its fallbacks
   double residual = 0;
   bool unconverged = false, capped = false;
   Status status = Status::success;
@@ -118,7 +128,8 @@ struct GroupStats {
 };
 
 /// Union-find over rods: contact groups (spec 03 §10.2), deterministic order (rods and
-/// contacts ascending within a group, groups by their smallest rod).
+/// contacts ascending within a group, groups by their smallest rod). `groups = false` in
+/// the params merges them into one group after this.
 std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<RodContactRows>& contacts,
                                              std::vector<std::vector<int>>& group_rods);
 
@@ -186,7 +197,15 @@ class RodResponse {
       }
       for (int r = 0; r < R; ++r) sys.body(r).d = del[r];
       std::vector<std::vector<int>> group_rods;
-      const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods);
+      std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods);
+      if (!prm_.groups && groups.size() > 1) {  // one monolithic group: contacts and rods ascending
+        std::vector<int> all(contacts_.size()), rods;
+        std::iota(all.begin(), all.end(), 0);
+        for (const auto& g : group_rods) rods.insert(rods.end(), g.begin(), g.end());
+        std::sort(rods.begin(), rods.end());
+        groups.assign(1, std::move(all));
+        group_rods.assign(1, std::move(rods));
+      }
       stats_.assign(groups.size(), {});
 #pragma omp parallel for schedule(dynamic, 1)
       for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group(sys, groups[g], group_rods[g]);
@@ -205,6 +224,8 @@ class RodResponse {
         rep.gs_unconverged += st.unconverged;
         rep.relinearized += st.relinearized;
         rep.capped_groups += st.capped;
+        rep.contact_newton += st.newton;
+        rep.contact_fallbacks += st.fallbacks;
         if (st.status != Status::success && rep.status == Status::success) {
           rep.status = st.status;
           rep.message = st.message;
@@ -265,19 +286,6 @@ class RodResponse {
     return true;
   }
 
-  /// u_k = G_k^T x + b_k, x the displacements of the group's rods.
-  static Eigen::Vector3d local(const RodContactRows& k, const std::vector<Eigen::VectorXd>& x) {
-    Eigen::Vector3d u = k.b;
-    for (int side = 0; side < 2; ++side)
-      if (k.rods[side] >= 0) u += k.G[side].transpose() * x[k.slot[side]];
-    return u;
-  }
-  /// x += P_k r.
-  static void respond(const RodContactRows& k, const Eigen::Vector3d& r, std::vector<Eigen::VectorXd>& x) {
-    for (int side = 0; side < 2; ++side)
-      if (k.rods[side] >= 0) x[k.slot[side]] += k.P[side] * r;
-  }
-
   /// P_k = D G_k and W_kk for the compliance of the strategy.
   template <class System>
   void build_compliance(System& sys, RodContactRows& k) const {
@@ -298,61 +306,6 @@ class RodResponse {
     k.scale = coulomb_scale(k.W);
   }
 
-  /// Gauss-Seidel over the group's contacts: one sweep (spec 03 §10.3, incremental form).
-  /// `mode`: 0 the full Coulomb problem, 1 the normal problem with the tangential
-  /// multipliers fixed, 2 the friction problem with the normal multipliers fixed.
-  /// Returns the largest change and the largest size of a multiplier in the sweep, both in
-  /// the units of u (times `scale`).
-  std::pair<double, double> sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, std::vector<Eigen::VectorXd>& x,
-                                  int mode) const {
-    double change = 0, size = 0;
-    for (int id : ids) {
-      RodContactRows& k = cs[id];
-      const Eigen::Vector3d u = local(k, x);
-      const Eigen::Vector3d b = u - k.W * k.lambda;
-      Eigen::Vector3d r = k.lambda;
-      if (mode == 0) {
-        r = solve_coulomb(k.W, b, k.mu, k.lambda).r;
-      } else if (mode == 1) {  // min over r_n >= 0 of 1/2 W_nn r_n^2 + r_n (b_n + W_nt r_t)
-        const double bn = b[0] + k.W.row(0).tail<2>().dot(k.lambda.tail<2>());
-        r[0] = k.W(0, 0) > 0 ? std::max(0.0, -bn / k.W(0, 0)) : 0.0;
-      } else {  // min over |r_t| <= mu r_n of 1/2 r_t^T W_tt r_t + r_t^T (b_t + W_tn r_n): projected Newton on the disk
-        const Eigen::Matrix2d Wt = k.W.bottomRightCorner<2, 2>();
-        const Eigen::Vector2d bt = b.tail<2>() + k.W.bottomLeftCorner<2, 1>() * k.lambda[0];
-        const double radius = k.mu * std::max(0.0, k.lambda[0]);
-        Eigen::Vector2d rt = -Wt.ldlt().solve(bt);
-        if (!(rt.norm() <= radius)) {
-          // Projected gradient on the disk with step 1 / lambda_max(W_tt), to convergence.
-          const double L = std::max(Wt.eigenvalues().real().maxCoeff(), 1e-300);
-          rt = k.lambda.tail<2>();
-          for (int it = 0; it < 200; ++it) {
-            Eigen::Vector2d next = rt - (Wt * rt + bt) / L;
-            if (next.norm() > radius) next *= radius / next.norm();
-            const bool done = (next - rt).norm() <= 1e-14 * (radius + 1e-300);
-            rt = next;
-            if (done) break;
-          }
-        }
-        r.tail<2>() = rt;
-      }
-      respond(k, r - k.lambda, x);
-      change = std::max(change, (r - k.lambda).norm() * k.scale);
-      size = std::max(size, r.norm() * k.scale);
-      k.lambda = r;
-    }
-    return {change, size};
-  }
-
-  double contact_error(const std::vector<RodContactRows>& cs, const std::vector<int>& ids,
-                       const std::vector<Eigen::VectorXd>& x) const {
-    double e = 0;
-    for (int id : ids) {
-      const RodContactRows& k = cs[id];
-      e = std::max(e, fischer_burmeister(k.lambda, local(k, x), k.mu, k.scale));
-    }
-    return e;
-  }
-
   template <class System>
   GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
     GroupStats st;
@@ -363,7 +316,10 @@ class RodResponse {
       RodContactRows& k = contacts_[id];
       for (int side = 0; side < 2; ++side) k.slot[side] = k.rods[side] >= 0 ? slot_of(k.rods[side]) : -1;
     }
-    std::vector<Eigen::VectorXd> xs(rods.size());
+    // The order of the sweeps: detection order, or a shuffle (`order_seed`, ordering tests).
+    std::vector<int> order = ids;
+    if (prm_.order_seed != 0) std::shuffle(order.begin(), order.end(), std::mt19937_64(prm_.order_seed + 7919ull * ids.front()));
+    GroupDisplacements xs(rods.size());
     // The first linearisation: K at q + d_DEL for every rod of the group.
     if constexpr (uses_stiffness)
       for (int r : rods)
@@ -389,7 +345,7 @@ class RodResponse {
           xs[i] -= F.col(0);
         }
       }
-      for (int id : ids) respond(contacts_[id], contacts_[id].lambda, xs);
+      for (int id : ids) add_response(contacts_[id], contacts_[id].lambda, xs);
       if constexpr (S == RodStrategy::staggered_projections) {
         // Alternate the contact problem (normal multipliers, friction fixed) and the
         // friction problem (tangential multipliers, normal fixed), each solved by GS to
@@ -399,10 +355,10 @@ class RodResponse {
           ++st.sp_iterations;
           double beta_norm = 0, change = 0;
           for (size_t i = 0; i < ids.size(); ++i) before[i] = contacts_[ids[i]].lambda.tail<2>();
-          for (int mode : {1, 2})
+          for (SweepMode mode : {SweepMode::normal, SweepMode::friction})
             for (int s = 0; s < prm_.gs_max; ++s) {
               ++st.sweeps;
-              const auto [d, m] = sweep(contacts_, ids, xs, mode);
+              const auto [d, m] = gauss_seidel_sweep(contacts_, order, xs, mode);
               if (d <= 1e-3 * prm_.contact_tol + 1e-12 * m) break;
             }
           for (size_t i = 0; i < ids.size(); ++i) {
@@ -412,18 +368,37 @@ class RodResponse {
           if (change <= prm_.sp_tol * std::max(beta_norm, 1e-300)) break;
         }
         st.residual = contact_error(contacts_, ids, xs);
-        st.unconverged = st.residual > prm_.contact_tol;
       } else {
         int sweeps = 0;
         double err = contact_error(contacts_, ids, xs);
         while (err > prm_.contact_tol && sweeps < prm_.gs_max) {
-          sweep(contacts_, ids, xs, 0);
+          gauss_seidel_sweep(contacts_, order, xs, SweepMode::coulomb);
           ++sweeps;
           err = contact_error(contacts_, ids, xs);
         }
         st.sweeps += sweeps;
         st.residual = err;
-        st.unconverged = err > prm_.contact_tol;
+      }
+      // The convergent solver: Newton on the full Coulomb problem of the group from where
+      // Gauss-Seidel (or the staggered projections, whose fixed point is the same problem) stopped.
+      if (prm_.solver == RodContactSolver::newton && st.residual > prm_.contact_tol) {
+        const NewtonContactResult nr = solve_contacts_newton(
+            contacts_, order, xs, {.tolerance = prm_.contact_tol, .max_iterations = prm_.solver_max, .fallback_sweeps = 10, .dense_limit = 1500});
+        st.newton += nr.iterations;
+        st.fallbacks += nr.fallbacks;
+        st.sweeps += nr.sweeps;
+        st.residual = nr.residual;
+      }
+      st.unconverged = st.residual > prm_.contact_tol;
+      if (prm_.solver == RodContactSolver::newton && st.unconverged) {
+        for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
+        st.status = Status::no_convergence;
+        st.message = fmt::format(
+            "group of {} contacts on {} rods (first rod {}): the Newton contact solver stopped at a Fischer-Burmeister residual of {:.3g} m "
+            "> contact_tol = {:.3g} m after {} Newton steps in this group ({} fallbacks), constrained Newton iteration {}; raise contact.solver_max or "
+            "contact.contact_tol, or reduce dt",
+            ids.size(), rods.size(), rods.front(), st.residual, prm_.contact_tol, st.newton, st.fallbacks, outer);
+        return st;
       }
       for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
       if constexpr (!relinearizes) break;
@@ -438,6 +413,18 @@ class RodResponse {
           break;
         }
         std::fill(fresh.begin(), fresh.end(), 0);
+        // The next iteration evaluates every rod of the group at its iterate, which may fold or
+        // collapse an edge: the model (its gradient, Hessian and transport) is undefined there,
+        // so the step fails with a status instead of asserting inside the parallel region.
+        for (int r : rods) {
+          const auto& body = sys.body(r);
+          if (!body.model.admissible(body.q + body.d, body.frames)) {
+            st.status = Status::numerical_issue;
+            st.message = fmt::format("rod {}: the constrained Newton iterate {} folds or collapses an edge (stretch {:.3g}); reduce dt",
+                                     r, outer, sys.stretch(r, body.d));
+            return st;
+          }
+        }
         for (int r : over) {
           if (sys.relinearize(r) != Status::success) {
             st.status = Status::numerical_issue;
@@ -471,6 +458,7 @@ using StaggeredProjections = RodResponse<RodStrategy::staggered_projections>;
 class NoRodContact {
  public:
   static constexpr std::string_view name = "none";
+  static constexpr bool inert = true;  // the simulator skips the contact stage
   struct Params {
     template <class V>
     void visit(V&) {}
