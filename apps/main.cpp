@@ -10,9 +10,12 @@
 #include <omp.h>
 #endif
 
+#include "apps/ablate.hpp"
 #include "apps/bench_bending.hpp"
 #include "apps/bench_contact.hpp"
+#include "apps/bench_hair.hpp"
 #include "apps/bench_linear.hpp"
+#include "apps/plots.hpp"
 #include "apps/stability.hpp"
 #include "apps/runner.hpp"
 #include "framework/scene.hpp"
@@ -61,6 +64,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   cmd_stab->add_option("-o,--out", stab.out_dir, "output directory for stability.csv and stability_map.txt");
   cmd_stab->add_flag("-q,--quiet", stab.quiet, "no per-run lines");
+  bool stab_no_plots = false;
+  cmd_stab->add_flag("--no-plots", stab_no_plots, "no stability_map.png/.svg");
 
   app::BenchBendingOptions bench_bending;
   auto* cmd_bench = app.add_subcommand("bench", "benchmarks");
@@ -118,6 +123,47 @@ int main(int argc, char** argv) {
   cmd_bench_contact->add_flag("--quick", bench_contact.quick, "reduced run: resolution 11 unless given, 4 steps");
   cmd_bench_contact->add_option("--out", bench_contact.out_dir, "output directory (default: out/bench_contact)");
 
+  app::BenchHairOptions bench_hair;
+  auto* cmd_bench_hair = cmd_bench->add_subcommand(
+      "hair", "hair-ball stability study (thesis Figure 9.12): success, run time, contacts, Newton iterations per strategy and dt");
+  cmd_bench_hair->add_option("scene", bench_hair.scene, "hair-ball scene (default: the source tree's scenes/hairball_1000.json)");
+  cmd_bench_hair->add_option("overrides", bench_hair.overrides, "key=value overrides applied to every run");
+  cmd_bench_hair->add_option("--strategies", bench_hair.strategies,
+                             "rod combinations (default: rods_impulse rods_linear rods_adonis; rods_staggered also applies)");
+  cmd_bench_hair->add_option("--dt", bench_hair.dts, "time steps [s] (default: 0.1 0.01 0.005 0.001)")->check(CLI::PositiveNumber);
+  cmd_bench_hair->add_option("--duration", bench_hair.duration, "simulated time per run [s] (default: the scene's)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_hair->add_option("--strain", bench_hair.strain_threshold, "edge strain above which a run fails (default 0.5)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench_hair->add_flag("--quick", bench_hair.quick, "reduced run: 8 rods, dt 0.01 and 0.005, 0.02 s");
+  cmd_bench_hair->add_flag("--resume", bench_hair.resume, "keep --out's bench_hair.csv and skip the runs it holds");
+  cmd_bench_hair->add_option("--out", bench_hair.out_dir, "output directory (default: out/bench_hair)");
+
+  app::AblateOptions ablate;
+  bool ablate_no_plots = false, ablate_loose_reference = false;
+  auto* cmd_ablate = app.add_subcommand(
+      "ablate", "one scene under several combinations, each measured against a reference run: error, energy drift, "
+                "penetrations, iterations, time per stage; CSV, JSON and plots");
+  cmd_ablate->add_option("scene", ablate.scene, "scene file (JSON)")->required();
+  cmd_ablate->add_option("overrides", ablate.overrides, "key=value overrides applied to every run, the reference included");
+  cmd_ablate->add_option("--combos", ablate.combos, "combinations to compare, or 'applicable' for every one that applies")->required();
+  cmd_ablate->add_option("--reference", ablate.reference,
+                         "reference combination (default: the scene's, or the same policies with a direct solver)");
+  cmd_ablate->add_option("--reference-substeps", ablate.reference_substeps, "reference time step = scene dt / this (default 4)")
+      ->check(CLI::PositiveNumber);
+  cmd_ablate->add_flag("--loose-reference", ablate_loose_reference, "keep the reference's Newton tolerances (default: tightened)");
+  cmd_ablate->add_option("--duration", ablate.duration, "simulated time per run [s] (default: the scene's)")->check(CLI::PositiveNumber);
+  cmd_ablate->add_option("-o,--out", ablate.out_dir, "output directory (default: out-ablate)");
+  cmd_ablate->add_flag("--no-plots", ablate_no_plots, "tables only");
+  cmd_ablate->add_flag("-q,--quiet", ablate.quiet, "no per-run lines");
+
+  auto* cmd_render = app.add_subcommand(
+      "render", "frames of a `weft run` output directory to PNG with POV-Ray, an animated GIF or MP4, or a side-by-side "
+                "of two runs (scripts/weft_render.py; `weft render --help` for its options)");
+  cmd_render->set_help_flag();  // --help goes to the renderer, which documents the options
+  cmd_render->allow_extras();
+  cmd_render->prefix_command();
+
   app.footer("See README.md and docs/scene-reference.md.");
   try {
     app.parse(argc, argv);
@@ -159,6 +205,7 @@ int main(int argc, char** argv) {
   if (*cmd_bench_bending) return app::bench_bending(bench_bending);
   if (*cmd_bench_linear) return app::bench_linear(bench_linear);
   if (*cmd_bench_contact) return app::bench_contact(bench_contact);
+  if (*cmd_bench_hair) return app::bench_hair(bench_hair);
   if (*cmd_stab) {
     if (!vary.empty()) {
       const auto eq = vary.find('=');
@@ -171,8 +218,15 @@ int main(int argc, char** argv) {
       std::stringstream ss(rest);
       while (std::getline(ss, item, ',')) stab.vary_values.push_back(item);
     }
+    stab.plots = !stab_no_plots;
     return app::run_stability(stab);
   }
+  if (*cmd_ablate) {
+    ablate.plots = !ablate_no_plots;
+    ablate.reference_tighten = !ablate_loose_reference;
+    return app::run_ablate(ablate);
+  }
+  if (*cmd_render) return app::run_python_tool("weft_render.py", cmd_render->remaining());
   if (*cmd_keys) {
     fmt::print("{}", scene_reference());
     return 0;

@@ -1,7 +1,10 @@
 #include "apps/stability.hpp"
 
+#include "apps/plots.hpp"
+
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -62,7 +65,9 @@ StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, 
   res.value = value;
   std::vector<std::string> ov = opt.overrides;
   ov.push_back(fmt::format("time.dt={}", dt));
-  ov.push_back(fmt::format("time.frame_rate={}", 1.0 / dt));  // one step per frame: any dt is valid
+  // dt <= 1/frame_rate makes any dt valid; the scene caps the frame rate (10^4 /s), and no
+  // frame is written here, so steps below 1 ms run at 1000 frames per second.
+  ov.push_back(fmt::format("time.frame_rate={}", std::min(1.0 / dt, 1000.0)));
   if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
   if (!combo.empty()) ov.push_back("combo=" + combo);
   if (!opt.vary_key.empty()) ov.push_back(opt.vary_key + "=" + value);
@@ -187,6 +192,9 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
   std::ofstream((std::filesystem::path(opt.out_dir) / "stability_map.txt").string()) << map;
   fmt::print("{}", map);
   fmt::print("table: {}\n", csv_path);
+  csv.close();
+  if (opt.plots && plot("stability", csv_path, opt.out_dir) == PlotOutcome::written)
+    fmt::print("map: {}/stability_map.{{png,svg}}\n", opt.out_dir);
   if (out) *out = std::move(all);
   return 0;
 }

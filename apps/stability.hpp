@@ -2,8 +2,8 @@
 /// \file stability.hpp
 /// `weft stability`: a grid of runs (time step against one scene parameter) per
 /// combination, each classified as stable, diverged (NaN or energy blow-up), not converged
-/// (a step's Newton or linear solve failed) or excessive strain. Writes a CSV table and
-/// prints a map.
+/// (a step's Newton or linear solve failed) or excessive strain. Writes a CSV table, prints
+/// a map and, with python3-matplotlib, draws it (stability_map.png and .svg).
 #include <string>
 #include <vector>
 
@@ -23,6 +23,7 @@ struct StabilityOptions {
   double strain_threshold = 0.5;           ///< largest admissible edge strain |l/l0 - 1|
   double energy_growth = 0.1;              ///< blow-up: total energy rises above E0 + energy_growth * scale (scenes without scripted motion)
   bool quiet = false;
+  bool plots = true;                       ///< stability_map.{png,svg} through scripts/weft_plot.py (python3-matplotlib)
 };
 
 /// One grid cell.

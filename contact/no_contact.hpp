@@ -12,6 +12,7 @@ class NoContact {
  public:
   static constexpr std::string_view name = "none";
   static constexpr bool provides_potential = true;  // a zero potential
+  static constexpr bool inert = true;               // the simulator skips the contact stage
   struct Params {
     template <class V>
     void visit(V&) {}

@@ -75,6 +75,12 @@ concept ContactStrategy = Component<C> && std::constructible_from<C, const Scene
       { c.end_step(out, dt) } -> std::same_as<ContactReport>;  // post-solve response (impulses, ...)
     };
 
+/// Optional marker of a contact strategy that does nothing (`static constexpr bool inert =
+/// true`, e.g. NoContact): the simulators skip the contact stage altogether, so a scene
+/// without contact does not even run the stage's timer.
+template <class C>
+concept InertContact = requires { requires C::inert; };
+
 /// Solves A x = b for the Newton systems. Eigen-like life cycle.
 template <class L>
 concept LinearSolver = Component<L> && std::constructible_from<L, const typename L::Params&> &&

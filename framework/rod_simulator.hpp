@@ -158,7 +158,7 @@ class RodSimulator {
     }
     rep.newton.method = del.empty() ? "" : del[0].method;
     rep.newton.stop_reason = "every rod converged (iterations: the largest over the rods)";
-    {
+    if constexpr (!InertContact<Contact>) {
       ScopedTimer timer(rep.times, Stage::contact);
       rep.contact = contact_.resolve(*this);
     }

@@ -103,7 +103,7 @@ class Simulator {
     rep.dt = dt;
     scene_.constrained_positions(state_.t + dt, state_, target_);
     if constexpr (HasBeginStep<Energy>) energy_.begin_step(state_, state_.t + dt);
-    {
+    if constexpr (!InertContact<Contact>) {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact = contact_.begin_step(state_, dt);
       if constexpr (HasDynamicPattern<Contact>)
@@ -124,7 +124,7 @@ class Simulator {
     rep.linear = r.linear;
     rep.times += r.times;
     if (r.status != Status::success) return rep.fail(r.failed_stage, r.status, r.message, state_.t);
-    {
+    if constexpr (!InertContact<Contact>) {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact.merge_end(contact_.end_step(state_, dt));
       if (rep.contact.status != Status::success)

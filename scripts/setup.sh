@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(cmake ninja-build g++ ccache pkg-config
           libeigen3-dev libboost-dev libfmt-dev doctest-dev
           nlohmann-json3-dev libtinyobjloader-dev libcli11-dev libspdlog-dev
-          liblapack-dev)
+          liblapack-dev python3-matplotlib python3-pil povray ffmpeg fonts-dejavu-core)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,276 @@
+#!/usr/bin/python3
+"""weft's plots: PNG and SVG from matplotlib (Debian's python3-matplotlib).
+
+Run with the system interpreter (/usr/bin/python3): Debian's matplotlib lives in
+/usr/lib/python3/dist-packages, which a pyenv or virtualenv python does not see.
+
+  weft_plot.py stability CSV [--out DIR] [--title T]
+      stability map from `weft stability`'s stability.csv: one panel per combination, the
+      time step down (log), the varied scene value across; cells coloured by outcome
+      (stable, diverged, not converged, excessive strain, invalid).
+  weft_plot.py pareto CSV [--out DIR] [--x COL] [--y COL] [--label COL]
+      error against run time (log-log), one point per row, the Pareto front marked
+      (no other row is both faster and more accurate).
+  weft_plot.py stages CSV [--out DIR] [--label COL] [--prefix P]
+      time per stage: one stacked bar per row from the columns named P<stage>.
+  weft_plot.py histories JSONL [--out DIR] [--key K] [--label COL]
+      convergence histories: one line per JSON record, the list under K (log y).
+
+Exit status: 0 with the files written, 3 when matplotlib is missing (the message says how to
+install it), 2 on bad input (the message names the file, the row and the column).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+OUTCOMES = [  # (csv value, legend, colour, map symbol of stability_map.txt)
+    ("stable", "stable", "#4daf4a", "."),
+    ("diverged", "diverged", "#e41a1c", "D"),
+    ("not_converged", "not converged", "#ff7f00", "N"),
+    ("excessive_strain", "excessive strain", "#984ea3", "S"),
+    ("invalid", "invalid", "#999999", "?"),
+]
+
+
+class InputError(Exception):
+    pass
+
+
+def load_pyplot():
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        return plt
+    except ImportError:
+        sys.stderr.write("weft_plot: matplotlib is not available to {} - install Debian's python3-matplotlib "
+                         "(apt-get install python3-matplotlib) and run with /usr/bin/python3; no plot written\n"
+                         .format(sys.executable))
+        sys.exit(3)
+
+
+def read_csv(path, required):
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise InputError("{}: {}".format(path, e.strerror))
+    if not rows:
+        raise InputError("{}: no rows".format(path))
+    missing = [c for c in required if c not in rows[0]]
+    if missing:
+        raise InputError("{}: missing column(s) {} (has: {})".format(path, ", ".join(missing), ", ".join(rows[0].keys())))
+    return rows
+
+
+def number(path, i, row, col, positive=False):
+    try:
+        v = float(row[col])
+    except (TypeError, ValueError):
+        raise InputError("{}: row {}: column '{}' = '{}' is not a number".format(path, i + 2, col, row[col]))
+    if positive and not v > 0:
+        raise InputError("{}: row {}: column '{}' = {} must be > 0 (log axis)".format(path, i + 2, col, v))
+    return v
+
+
+def save(fig, out, stem):
+    os.makedirs(out, exist_ok=True)
+    written = []
+    for ext in ("png", "svg"):
+        p = os.path.join(out, "{}.{}".format(stem, ext))
+        fig.savefig(p, dpi=150, bbox_inches="tight")
+        written.append(p)
+    print("\n".join(written))
+
+
+def sort_key(v):
+    try:
+        return (0, float(v), v)
+    except ValueError:
+        return (1, 0.0, v)
+
+
+def plot_stability(args):
+    rows = read_csv(args.csv, ["combo", "dt", "value", "outcome"])
+    known = {o[0]: k for k, o in enumerate(OUTCOMES)}
+    for i, r in enumerate(rows):
+        number(args.csv, i, r, "dt", positive=True)
+        if r["outcome"] not in known:
+            raise InputError("{}: row {}: column 'outcome' = '{}' is not one of {}".format(
+                args.csv, i + 2, r["outcome"], ", ".join(known)))
+    plt = load_pyplot()
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+    combos = list(dict.fromkeys(r["combo"] or "(scene's)" for r in rows))
+    dts = sorted({float(r["dt"]) for r in rows})
+    values = sorted({r["value"] for r in rows}, key=sort_key)
+    key = rows[0].get("key", "") or ""
+    fig, axes = plt.subplots(1, len(combos), figsize=(max(3.2, 0.45 * len(values) + 1.8) * len(combos), 0.32 * len(dts) + 1.8),
+                             squeeze=False, sharey=True)
+    cmap = ListedColormap([o[2] for o in OUTCOMES])
+    for ax, combo in zip(axes[0], combos):
+        grid = [[math.nan] * len(values) for _ in dts]
+        for r in rows:
+            if (r["combo"] or "(scene's)") != combo:
+                continue
+            grid[dts.index(float(r["dt"]))][values.index(r["value"])] = known[r["outcome"]]
+        masked = [[c if c == c else -1 for c in line] for line in grid]
+        import numpy as np
+        data = np.ma.masked_less(np.array(masked, dtype=float), 0)
+        ax.imshow(data, cmap=cmap, vmin=-0.5, vmax=len(OUTCOMES) - 0.5, aspect="auto", origin="lower", interpolation="nearest")
+        ax.set_xticks(range(len(values)))
+        ax.set_xticklabels(values if key else [""] * len(values), rotation=45, ha="right")
+        ax.set_yticks(range(len(dts)))
+        ax.set_yticklabels(["{:.3g}".format(d) for d in dts])
+        ax.set_title(combo)
+        ax.set_xlabel(key if key else "")
+        ax.set_xticks([x - 0.5 for x in range(1, len(values))], minor=True)
+        ax.set_yticks([y - 0.5 for y in range(1, len(dts))], minor=True)
+        ax.grid(which="minor", color="white", linewidth=1)
+        ax.tick_params(which="minor", length=0)
+    axes[0][0].set_ylabel("time step [s]")
+    present = sorted({known[r["outcome"]] for r in rows})
+    fig.legend(handles=[Patch(color=OUTCOMES[k][2], label=OUTCOMES[k][1]) for k in present], loc="lower center",
+               ncol=len(present), bbox_to_anchor=(0.5, -0.02 - 0.03 * (len(present) > 3)))
+    if args.title:
+        fig.suptitle(args.title)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    save(fig, args.out, "stability_map")
+
+
+def pareto_front(points):
+    """Indices of the points that no other point beats in both coordinates (smaller is better)."""
+    front = []
+    for i, (x, y) in enumerate(points):
+        if not any((xo <= x and yo <= y) and (xo < x or yo < y) for j, (xo, yo) in enumerate(points) if j != i):
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])
+
+
+def plot_pareto(args):
+    rows = read_csv(args.csv, [args.x, args.y, args.label])
+    pts, labels, skipped, failed = [], [], [], []
+    for i, r in enumerate(rows):
+        if r.get("status", "ok") != "ok":  # a failed run's partial error would flatter it
+            failed.append(r[args.label])
+            continue
+        x = number(args.csv, i, r, args.x, positive=True)
+        y = number(args.csv, i, r, args.y)
+        if y <= 0:  # the reference itself (zero error) has no place on a log axis
+            skipped.append(r[args.label])
+            continue
+        pts.append((x, y))
+        labels.append(r[args.label])
+    if not pts:
+        raise InputError("{}: no row with {} > 0".format(args.csv, args.y))
+    plt = load_pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    front = pareto_front(pts)
+    ax.scatter([p[0] for p in pts], [p[1] for p in pts], color="#377eb8", zorder=3)
+    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "--", color="#e41a1c", zorder=2, label="Pareto front")
+    for (x, y), name in zip(pts, labels):
+        ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(args.x)
+    ax.set_ylabel(args.y)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    notes = []
+    if skipped:
+        notes.append("not shown (zero error): " + ", ".join(skipped))
+    if failed:
+        notes.append("failed: " + ", ".join(failed))
+    if notes:
+        ax.set_title("\n".join(notes), fontsize=8)
+    save(fig, args.out, "pareto")
+
+
+def plot_stages(args):
+    rows = read_csv(args.csv, [args.label])
+    stages = [c for c in rows[0].keys() if c.startswith(args.prefix)]
+    if not stages:
+        raise InputError("{}: no column starts with '{}'".format(args.csv, args.prefix))
+    values = [[number(args.csv, i, r, s) for s in stages] for i, r in enumerate(rows)]
+    plt = load_pyplot()
+    fig, ax = plt.subplots(figsize=(max(6.4, 0.8 * len(rows) + 2), 4.8))
+    bottom = [0.0] * len(rows)
+    for k, s in enumerate(stages):
+        col = [v[k] for v in values]
+        ax.bar(range(len(rows)), col, bottom=bottom, label=s[len(args.prefix):])
+        bottom = [b + c for b, c in zip(bottom, col)]
+    ax.set_xticks(range(len(rows)))
+    ax.set_xticklabels([r[args.label] for r in rows], rotation=30, ha="right")
+    ax.set_ylabel("wall time [s]")
+    ax.legend(fontsize=8)
+    save(fig, args.out, "stages")
+
+
+def plot_histories(args):
+    records = []
+    try:
+        with open(args.jsonl) as f:
+            for n, line in enumerate(f, 1):
+                if line.strip():
+                    try:
+                        records.append(json.loads(line))
+                    except json.JSONDecodeError as e:
+                        raise InputError("{}: line {}: {}".format(args.jsonl, n, e))
+    except OSError as e:
+        raise InputError("{}: {}".format(args.jsonl, e.strerror))
+    series = [(r.get(args.label, str(i)), r[args.key]) for i, r in enumerate(records) if isinstance(r.get(args.key), list) and r[args.key]]
+    if not series:
+        raise InputError("{}: no record has a non-empty list under '{}'".format(args.jsonl, args.key))
+    plt = load_pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    for name, hist in series:
+        ax.semilogy(range(len(hist)), [max(abs(float(h)), 1e-300) for h in hist], label=str(name))
+    ax.set_xlabel("iteration")
+    ax.set_ylabel(args.key)
+    ax.grid(True, which="both", alpha=0.3)
+    if len(series) <= 12:
+        ax.legend(fontsize=8)
+    save(fig, args.out, "histories")
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="weft_plot.py", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    s = sub.add_parser("stability", help="stability map from stability.csv")
+    s.add_argument("csv")
+    s.add_argument("--out", default=".")
+    s.add_argument("--title", default="")
+    s.set_defaults(fn=plot_stability)
+    s = sub.add_parser("pareto", help="error against run time with the Pareto front")
+    s.add_argument("csv")
+    s.add_argument("--out", default=".")
+    s.add_argument("--x", default="wall_seconds")
+    s.add_argument("--y", default="rms_error")
+    s.add_argument("--label", default="combo")
+    s.set_defaults(fn=plot_pareto)
+    s = sub.add_parser("stages", help="time per stage, stacked")
+    s.add_argument("csv")
+    s.add_argument("--out", default=".")
+    s.add_argument("--label", default="combo")
+    s.add_argument("--prefix", default="seconds_")
+    s.set_defaults(fn=plot_stages)
+    s = sub.add_parser("histories", help="convergence histories")
+    s.add_argument("jsonl")
+    s.add_argument("--out", default=".")
+    s.add_argument("--key", default="residuals")
+    s.add_argument("--label", default="label")
+    s.set_defaults(fn=plot_histories)
+    args = p.parse_args(argv)
+    try:
+        args.fn(args)
+    except InputError as e:
+        sys.stderr.write("weft_plot: {}\n".format(e))
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
