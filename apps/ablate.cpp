@@ -11,6 +11,7 @@
 #include <fstream>
 #include <numeric>
 
+#include "apps/bench_common.hpp"
 #include "apps/plots.hpp"
 #include "contact/rods/rod_verify.hpp"
 #include "contact/verify/intersection_check.hpp"
@@ -152,12 +153,6 @@ AblateRow run_one(const std::string& scene_path, const std::vector<std::string>&
     fmt::print(stderr, "{}: {} ({} of {} steps, {:.2f} s), rms error {:.3g}\n", row.combo, row.status, row.steps,
                row.steps_planned, row.wall_seconds, row.rms_error);
   return row;
-}
-
-std::string csv_field(const std::string& s) {
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : c == '\n' ? std::string(" ") : std::string(1, c);
-  return q + "\"";
 }
 
 std::string csv_header() {

@@ -27,21 +27,12 @@
 #include "models/hinge_bending.hpp"
 #include "policies/registry.hpp"
 
-#ifndef WEFT_SOURCE_DIR
-#define WEFT_SOURCE_DIR ""
-#endif
-#ifndef WEFT_CXX_FLAGS
-#define WEFT_CXX_FLAGS "unknown"
-#endif
-
 namespace weft::app {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using models::BendingAssembly;
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr double ulp = 0x1p-53;  // the thesis' unit for the normwise Hessian differences
 constexpr int num_methods = 3;
@@ -245,7 +236,7 @@ Resolution run_resolution(int n, const std::string& scene_path, const std::vecto
 
 int bench_bending(const BenchBendingOptions& opt_in) {
   BenchBendingOptions opt = opt_in;
-  const std::string source_dir = std::getenv("WEFT_SOURCE_DIR") ? std::getenv("WEFT_SOURCE_DIR") : WEFT_SOURCE_DIR;
+  const std::string source_dir = app::source_dir();
   if (opt.scene.empty()) opt.scene = (fs::path(source_dir) / "scenes" / "hanging_cloth.json").string();
   if (!fs::exists(opt.scene)) {
     fmt::print(stderr, "error: scene {} not found: pass --scene path/to/scenes/hanging_cloth.json (or set WEFT_SOURCE_DIR)\n",
@@ -340,7 +331,7 @@ int bench_bending(const BenchBendingOptions& opt_in) {
         "exist in weft yet. Bending energy: `HingeBending<{}>`.\n\n",
         opt.scene, combo, energy, opt.record_dt, record_steps, states_at, tan ? "TanEnergy" : "ThetaEnergy"));
   w(fmt::format("Hardware: {}; {} hardware threads; measurements on 1 thread (OpenMP default here: {}). Compiler: {} `{}`; git {}.\n\n",
-                cpu, hw_threads, omp_threads, __VERSION__, WEFT_CXX_FLAGS, git));
+                cpu, hw_threads, omp_threads, __VERSION__, build_flags(), git));
   w(fmt::format("Protocol: one warm-up call, then at least 3 and at most {} repetitions within {:.3g} s per resolution and method; "
                 "times are min / median [ms] with the repetition count in parentheses. \"forces + Hessian\" = gradient and "
                 "element Hessians into the `ElementBuffer`; \"+ assembly\" adds `AssemblyPlan::gather` into the `BlockCsr` "
@@ -427,7 +418,7 @@ int bench_bending(const BenchBendingOptions& opt_in) {
         Json j{{"bench", "bending"},
                {"git", git},
                {"compiler", __VERSION__},
-               {"flags", WEFT_CXX_FLAGS},
+               {"flags", build_flags()},
                {"cpu", cpu},
                {"threads", 1},
                {"scene", opt.scene},

@@ -1,9 +1,34 @@
 #include "apps/bench_common.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 
+#ifndef WEFT_SOURCE_DIR
+#define WEFT_SOURCE_DIR ""
+#endif
+#ifndef WEFT_CXX_FLAGS
+#define WEFT_CXX_FLAGS "unknown"
+#endif
+
 namespace weft::app {
+
+std::string source_dir() {
+  const char* env = std::getenv("WEFT_SOURCE_DIR");
+  return env ? env : WEFT_SOURCE_DIR;
+}
+
+const char* build_flags() { return WEFT_CXX_FLAGS; }
+
+std::string csv_field(const std::string& s) {
+  std::string q(1, '"');
+  for (char c : s) {
+    if (c == '"') q.append("\"\"");
+    else q.push_back(c == '\n' ? ' ' : c);
+  }
+  q.push_back('"');
+  return q;
+}
 
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");

@@ -24,20 +24,11 @@
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
 
-#ifndef WEFT_SOURCE_DIR
-#define WEFT_SOURCE_DIR ""
-#endif
-#ifndef WEFT_CXX_FLAGS
-#define WEFT_CXX_FLAGS "unknown"
-#endif
-
 namespace weft::app {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 /// Sums over the counted steps of one resolution.
 struct Totals {
@@ -87,7 +78,7 @@ std::array<int, 2> parse_resolution(const std::string& s) {
 }  // namespace
 
 int bench_contact(const BenchContactOptions& opt) {
-  const std::string source_dir = std::getenv("WEFT_SOURCE_DIR") ? std::getenv("WEFT_SOURCE_DIR") : WEFT_SOURCE_DIR;
+  const std::string source_dir = app::source_dir();
   const std::string scene_path =
       !opt.scene.empty() ? opt.scene : (fs::path(source_dir.empty() ? "." : source_dir) / "scenes" / "drape_sphere.json").string();
   std::vector<std::string> resolutions = opt.resolutions;
@@ -146,7 +137,7 @@ int bench_contact(const BenchContactOptions& opt) {
              {"bench", "contact"},
              {"git", git},
              {"compiler", __VERSION__},
-             {"flags", WEFT_CXX_FLAGS},
+             {"flags", build_flags()},
              {"cpu", cpu},
              {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
              {"threads", threads},
@@ -166,7 +157,7 @@ int bench_contact(const BenchContactOptions& opt) {
 
   const std::string scene_name = fs::path(scene_path).stem().string();
   fmt::print("# weft bench contact: {}\n\nHardware: {} ({} hardware threads, {} OpenMP threads); git {}; {}\n\n", scene_name, cpu,
-             std::thread::hardware_concurrency(), threads, git, WEFT_CXX_FLAGS);
+             std::thread::hardware_concurrency(), threads, git, build_flags());
   fmt::print("Shares are of the summed wall time of the counted steps {}..{} of each run (steps 1..{} run, not counted).\n\n",
              skip + 1, skip + case_steps.front(), skip);
   fmt::print("| resolution | vertices | s/step | detection | response | solve | contacts/step | CCD hits/step | impact zones/step "

@@ -31,21 +31,12 @@
 #include "policies/registry.hpp"
 #include "policies/rod_presets.hpp"
 
-#ifndef WEFT_SOURCE_DIR
-#define WEFT_SOURCE_DIR ""
-#endif
-#ifndef WEFT_CXX_FLAGS
-#define WEFT_CXX_FLAGS "unknown"
-#endif
-
 namespace weft::app {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using contact::rods::GroupStats;
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 /// The per-group statistics of the last step of a rod simulator with contact groups (null
 /// for other simulators): the strategy's own record, updated by every step.
@@ -59,20 +50,6 @@ const std::vector<GroupStats>* group_stats(AnySimulator& s) {
   if (auto* g = groups_if<RodsLinear>(s)) return g;
   if (auto* g = groups_if<RodsAdonis>(s)) return g;
   return groups_if<RodsStaggered>(s);
-}
-
-/// Largest |l / l_rest - 1| over the rod edges: the strain of `weft stability`
-/// (apps/stability.cpp, max_edge_strain, rod part).
-double max_rod_strain(const Scene& scene, const State& s) {
-  double m = 0;
-  const RodSet& rods = scene.rods;
-  for (int r = 0; r < rods.num_rods(); ++r)
-    for (int i = 0; i + 1 < rods.rod_vertices(r); ++i) {
-      const double l0 = (rods.rest[r].segment<3>(4 * i + 4) - rods.rest[r].segment<3>(4 * i)).norm();
-      const double l = (s.position(rods.first[r] + i + 1) - s.position(rods.first[r] + i)).norm();
-      m = std::max(m, std::abs(l / l0 - 1.0));
-    }
-  return m;
 }
 
 /// One run: a strategy at one time step.
@@ -103,19 +80,13 @@ constexpr const char* csv_header =
     "newton_per_group_weighted,newton_per_group_max,gs_sweeps_per_step,relinearized_per_step,capped_groups,"
     "gs_unconverged_steps,redetections,max_strain,message";
 
-std::string csv_quote(const std::string& s) {
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : c == '\n' ? std::string(" ") : std::string(1, c);
-  return q + "\"";
-}
-
 std::string to_csv(const Run& r) {
   return fmt::format("{},{},{},{},{},{},{},{},{},{:.3f},{:.4e},{:.2f},{},{:.2f},{:.2f},{:.2f},{},{},{:.4f},{:.4f},{},{:.2f},{:.3f},{},{},{},{:.4e},{}",
                      r.scene, r.rods, r.strategy, r.dt, r.duration, to_string(r.outcome), r.ok() ? 1 : 0, r.steps, r.steps_planned,
                      r.wall, r.steps ? r.wall / r.steps : 0.0, r.contacts_mean, r.contacts_max, r.rod_contacts_mean,
                      r.obstacle_contacts_mean, r.groups_mean, r.groups_max, r.largest_group, r.newton_mean, r.newton_weighted,
                      r.newton_max, r.gs_sweeps_per_step, r.relinearized_per_step, r.capped_groups, r.gs_unconverged, r.redetections,
-                     r.max_strain, csv_quote(r.message));
+                     r.max_strain, csv_field(r.message));
 }
 
 /// A row written by to_csv (for --resume); false if it does not parse.
@@ -260,7 +231,7 @@ int simulate(const std::string& scene_path, const std::string& strategy, double 
         message = fmt::format("step {}: non-finite state or energy", r.step);
         break;
       }
-      const double strain = max_rod_strain(scene, sim->state());
+      const double strain = max_edge_strain(scene, sim->state());
       const ContactReport& cr = r.contact;
       long long outer = 0, wnum = 0, wden = 0;
       int gmax = 0;
@@ -377,7 +348,7 @@ Run collect(const fs::path& jsonl, int id) {
 }  // namespace
 
 int bench_hair(const BenchHairOptions& opt) {
-  const std::string source_dir = std::getenv("WEFT_SOURCE_DIR") ? std::getenv("WEFT_SOURCE_DIR") : WEFT_SOURCE_DIR;
+  const std::string source_dir = app::source_dir();
   const std::string scene_path =
       !opt.scene.empty() ? opt.scene : (fs::path(source_dir.empty() ? "." : source_dir) / "scenes" / "hairball_1000.json").string();
   const std::vector<std::string> strategies =
@@ -460,7 +431,7 @@ int bench_hair(const BenchHairOptions& opt) {
              {"bench", "hair"},
              {"git", git},
              {"compiler", __VERSION__},
-             {"flags", WEFT_CXX_FLAGS},
+             {"flags", build_flags()},
              {"cpu", cpu},
              {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
              {"threads", threads},
@@ -479,7 +450,7 @@ int bench_hair(const BenchHairOptions& opt) {
       "# weft bench hair: {} ({} rods of {} vertices)\n\nHardware: {} ({} hardware threads, {} OpenMP threads); git {}; {}\n\n"
       "Each run simulates {} s (the thesis' runs are longer; its duration is not stated). Failure: a failed step, a "
       "non-finite state or energy, or an edge strain |l / l_rest - 1| > {} (the classification of `weft stability`).\n",
-      scene_name, rods, vertices, cpu, std::thread::hardware_concurrency(), threads, git, WEFT_CXX_FLAGS,
+      scene_name, rods, vertices, cpu, std::thread::hardware_concurrency(), threads, git, build_flags(),
       duration > 0 ? duration : scene_duration, opt.strain_threshold);
   fmt::print("{}\n", title);
   fmt::print("| strategy | dt | outcome | steps | wall | s/step | contacts/step | max | groups/step | Newton/group | weighted | max "

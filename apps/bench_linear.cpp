@@ -29,20 +29,11 @@
 #include "apps/runner.hpp"
 #include "framework/params_json.hpp"
 
-#ifndef WEFT_SOURCE_DIR
-#define WEFT_SOURCE_DIR ""
-#endif
-#ifndef WEFT_CXX_FLAGS
-#define WEFT_CXX_FLAGS "unknown"
-#endif
-
 namespace weft::app {
 namespace {
 
 using namespace benchlin;
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr int thesis_m[12] = {30, 40, 60, 80, 100, 150, 200, 300, 400, 600, 800, 1000};
 constexpr double fps = 30.0;  // the thesis's frame rate is not stated (spec 04 §10.1)
@@ -386,7 +377,7 @@ int bench_linear(const BenchLinearOptions& opt) {
   const int threads = 1;
 #endif
   const int hw_threads = static_cast<int>(std::thread::hardware_concurrency());
-  const std::string source_dir = std::getenv("WEFT_SOURCE_DIR") ? std::getenv("WEFT_SOURCE_DIR") : WEFT_SOURCE_DIR;
+  const std::string source_dir = app::source_dir();
   const std::string cpu = cpu_model(), git = git_describe(source_dir);
   const fs::path out = opt.out_dir.empty() ? fs::path("out/bench_linear") : fs::path(opt.out_dir);
   const int steps_per_frame = static_cast<int>(std::lround(1.0 / fps / 2e-3));
@@ -411,7 +402,7 @@ int bench_linear(const BenchLinearOptions& opt) {
     csv.open(out / "bench_linear.csv");
     if (!jl || !csv) throw std::runtime_error("cannot open the output files");
     Json meta{{"record", "meta"},        {"bench", "linear"},      {"git", git},
-              {"compiler", __VERSION__}, {"flags", WEFT_CXX_FLAGS}, {"cpu", cpu},
+              {"compiler", __VERSION__}, {"flags", build_flags()}, {"cpu", cpu},
               {"hardware_threads", hw_threads}, {"threads", threads}, {"quick", opt.quick},
               {"direct_solver", direct_label}, {"reference", chosen.front().key}, {"tolerance", opt.tolerance},
               {"max_iterations", opt.max_iterations}, {"dt", 2e-3}, {"fps", fps}, {"steps_per_frame", steps_per_frame},
@@ -531,7 +522,7 @@ int bench_linear(const BenchLinearOptions& opt) {
   auto w = [&md](const std::string& s) { md += s; };
   w("# weft bench linear: thesis Table 11.1 (spec 04 §10)\n\n");
   w(fmt::format("Hardware: {}; {} hardware threads; {} OpenMP threads used. Compiler: {} `{}`; git {}.{}\n\n", cpu, hw_threads,
-                threads, __VERSION__, WEFT_CXX_FLAGS, git, opt.quick ? " **--quick: reduced run (m = 30, 2 steps).**" : ""));
+                threads, __VERSION__, build_flags(), git, opt.quick ? " **--quick: reduced run (m = 30, 2 steps).**" : ""));
   w(fmt::format("Direct solver: **{}**{} -- a stand-in for the thesis's MKL PARDISO, which is faster (PARDISO is not available "
                 "here), so the 'vs direct' speedups are not the thesis's 'vs PARDISO'.\n\n",
                 direct_label, cholmod ? "" : " (CHOLMOD not compiled in: -DWEFT_WITH_CHOLMOD=ON)"));

@@ -1,5 +1,7 @@
 #include "apps/bench_linear_systems.hpp"
 
+#include "apps/bench_common.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -17,8 +19,6 @@
 namespace weft::app::benchlin {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 const Eigen::Vector3d gravity(0, 0, -9.81);
 

@@ -1,5 +1,6 @@
 #include "apps/stability.hpp"
 
+#include "apps/bench_common.hpp"
 #include "apps/plots.hpp"
 
 #include <fmt/format.h>
@@ -28,19 +29,6 @@ const char* to_string(Stability s) {
   return "?";
 }
 
-namespace {
-
-char symbol(Stability s) {
-  switch (s) {
-    case Stability::stable: return '.';
-    case Stability::diverged: return 'D';
-    case Stability::not_converged: return 'N';
-    case Stability::excessive_strain: return 'S';
-    case Stability::invalid: return '?';
-  }
-  return '?';
-}
-
 double max_edge_strain(const Scene& scene, const State& s) {
   double m = 0;
   const RodSet& rods = scene.rods;  // rod edges: vertices i, i + 1 of each rod (rest in the interleaved layout)
@@ -56,6 +44,19 @@ double max_edge_strain(const Scene& scene, const State& s) {
     m = std::max(m, std::abs(l / l0 - 1.0));
   }
   return m;
+}
+
+namespace {
+
+char symbol(Stability s) {
+  switch (s) {
+    case Stability::stable: return '.';
+    case Stability::diverged: return 'D';
+    case Stability::not_converged: return 'N';
+    case Stability::excessive_strain: return 'S';
+    case Stability::invalid: return '?';
+  }
+  return '?';
 }
 
 StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, double dt, const std::string& value) {
@@ -125,12 +126,6 @@ StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, 
   res.newton_mean = res.steps ? static_cast<double>(newton) / res.steps : 0;
   res.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return res;
-}
-
-std::string csv_field(const std::string& s) {
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : c == '\n' ? std::string(" ") : std::string(1, c);
-  return q + "\"";
 }
 
 }  // namespace

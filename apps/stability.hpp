@@ -7,6 +7,11 @@
 #include <string>
 #include <vector>
 
+namespace weft {
+struct Scene;
+struct State;
+}  // namespace weft
+
 namespace weft::app {
 
 enum class Stability { stable, diverged, not_converged, excessive_strain, invalid };
@@ -39,6 +44,9 @@ struct StabilityResult {
 };
 
 const char* to_string(Stability s);
+
+/// Largest edge strain |l / l_rest - 1| over the rods' edges and the cloth mesh's edges.
+double max_edge_strain(const Scene& scene, const State& s);
 
 /// Runs the grid; returns the exit code (0, or 2 for a configuration error before any run).
 int run_stability(const StabilityOptions& options, std::vector<StabilityResult>* results = nullptr);

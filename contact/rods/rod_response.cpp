@@ -5,18 +5,21 @@
 namespace weft::contact::rods {
 
 std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<RodContactRows>& contacts,
-                                             std::vector<std::vector<int>>& group_rods) {
+                                             std::vector<std::vector<int>>& group_rods, bool separate) {
   std::vector<int> parent(num_rods);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int a) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
-  for (const RodContactRows& k : contacts)
-    if (k.rods[1] >= 0) {
-      const int a = find(k.rods[0]), b = find(k.rods[1]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);  // the root is the smallest rod of the component
-    }
+  auto unite = [&](int a, int b) {
+    a = find(a), b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);  // the root is the smallest rod of the component
+  };
+  for (const RodContactRows& k : contacts) {
+    if (k.rods[1] >= 0) unite(k.rods[0], k.rods[1]);
+    if (!separate) unite(k.rods[0], contacts.front().rods[0]);  // one monolithic group
+  }
   std::vector<int> slot(num_rods, -1);
   std::vector<std::vector<int>> groups;
   group_rods.clear();

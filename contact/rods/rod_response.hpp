@@ -33,14 +33,11 @@
 ///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
 /// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numeric>
 #include <random>
 #include <string_view>
 #include <utility>
@@ -128,10 +125,10 @@ struct GroupStats {
 };
 
 /// Union-find over rods: contact groups (spec 03 §10.2), deterministic order (rods and
-/// contacts ascending within a group, groups by their smallest rod). `groups = false` in
-/// the params merges them into one group after this.
+/// contacts ascending within a group, groups by their smallest rod). `separate = false`
+/// joins every contacted rod into one monolithic group (param `groups`).
 std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<RodContactRows>& contacts,
-                                             std::vector<std::vector<int>>& group_rods);
+                                             std::vector<std::vector<int>>& group_rods, bool separate = true);
 
 /// The code path shared by the four strategies.
 template <RodStrategy S>
@@ -197,15 +194,7 @@ class RodResponse {
       }
       for (int r = 0; r < R; ++r) sys.body(r).d = del[r];
       std::vector<std::vector<int>> group_rods;
-      std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods);
-      if (!prm_.groups && groups.size() > 1) {  // one monolithic group: contacts and rods ascending
-        std::vector<int> all(contacts_.size()), rods;
-        std::iota(all.begin(), all.end(), 0);
-        for (const auto& g : group_rods) rods.insert(rods.end(), g.begin(), g.end());
-        std::sort(rods.begin(), rods.end());
-        groups.assign(1, std::move(all));
-        group_rods.assign(1, std::move(rods));
-      }
+      const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods, prm_.groups);
       stats_.assign(groups.size(), {});
 #pragma omp parallel for schedule(dynamic, 1)
       for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group(sys, groups[g], group_rods[g]);
