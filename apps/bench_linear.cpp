@@ -103,6 +103,12 @@ double stream_triad_gbs(std::size_t n, int reps) {
 double spmv_bytes(const BlockCsr& A) {
   return 76.0 * A.num_blocks() + 4.0 * (A.block_rows() + 1) + 48.0 * A.block_rows();
 }
+/// Bytes the system matrix A holds (values, column indices, row pointers, diagonal positions):
+/// what every solver's user pays before any solver memory (the matrix is shared, not owned).
+std::size_t matrix_bytes(const BlockCsr& A) {
+  const std::size_t n = static_cast<std::size_t>(A.block_rows());
+  return sizeof(double) * A.values().capacity() + sizeof(int) * (A.col().capacity() + A.row_ptr().capacity() + n);
+}
 /// Best time of y = A x over repetitions (at least 3, about 0.1 s).
 double spmv_seconds(const BlockCsr& A) {
   Eigen::VectorXd x = Eigen::VectorXd::Ones(A.rows()), y(A.rows());
@@ -155,6 +161,7 @@ struct CaseResult {
   double rss_before_mb = 0, assembly_peak_mb = -1, case_peak_mb = -1, process_peak_mb = 0;
   double spmv_gbs = 0, spmv_mbytes = 0;
   int blocks = 0;
+  std::size_t matrix_bytes = 0;  // A of the last step
   std::string reference, failure;
   std::vector<SolverStats> solvers;
   const SolverStats* find(const std::string& key) const {
@@ -290,6 +297,7 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
   }
   r.wall_seconds = seconds_since(wall0);
   r.blocks = sim.A().num_blocks();
+  r.matrix_bytes = matrix_bytes(sim.A());
   const double bytes = spmv_bytes(sim.A());
   r.spmv_mbytes = bytes / 1e6;
   r.spmv_gbs = bytes / spmv_seconds(sim.A()) / 1e9;
@@ -412,7 +420,7 @@ int bench_linear(const BenchLinearOptions& opt) {
     jl << meta.dump() << "\n";
     csv << "example,tessellation,m,vertices,solver,solves,failures,analyses,mean_iterations,mean_rate,mean_setup_s,mean_solve_s,"
            "mean_total_s,median_total_s,mean_prefilter_s,mean_energy_error,max_energy_error,max_constraint_violation,"
-           "max_relative_residual,memory_bytes,levels,operator_complexity,steps,mean_box_contacts,max_box_contacts,mean_springs,"
+           "max_relative_residual,memory_bytes,matrix_bytes,levels,operator_complexity,steps,mean_box_contacts,max_box_contacts,mean_springs,"
            "max_springs,pattern_changes,assembly_mean_s,assembly_peak_rss_mb,case_peak_rss_mb,process_peak_rss_mb,spmv_gbs,"
            "spmv_pct_stream,failure\n";
   } catch (const std::exception& e) {
@@ -445,6 +453,7 @@ int bench_linear(const BenchLinearOptions& opt) {
               {"spmv_gbs", r.spmv_gbs},
               {"spmv_mbytes", r.spmv_mbytes},
               {"blocks", r.blocks},
+              {"matrix_bytes", r.matrix_bytes},
               {"wall_seconds", r.wall_seconds},
               {"reference", r.reference},
               {"failure", r.failure}};
@@ -469,16 +478,17 @@ int bench_linear(const BenchLinearOptions& opt) {
                {"max_constraint_violation", s.violation_max},
                {"max_relative_residual", s.relres_max},
                {"memory_bytes", s.memory_max},
+               {"memory_with_matrix_bytes", s.memory_max + r.matrix_bytes},
                {"levels", s.levels},
                {"operator_complexity", s.operator_complexity},
                {"message", s.message}};
         jl << j.dump() << "\n";
-        csv << fmt::format("{},{},{},{},{},{},{},{},{:.3f},{:.5f},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3e},{:.3e},{:.3e},{:.3e},{},{},"
+        csv << fmt::format("{},{},{},{},{},{},{},{},{:.3f},{:.5f},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3e},{:.3e},{:.3e},{:.3e},{},{},{},"
                            "{:.3f},{},{:.2f},{},{:.2f},{},{},{:.6e},{:.1f},{:.1f},{:.1f},{:.3f},{:.1f},\"{}\"\n",
                            ex_name(r.example), tess_name(r.tessellation), r.m, r.vertices, s.key, s.solves, s.failures, s.analyses,
                            s.mean_iterations(), s.mean_rate(), SolverStats::mean(s.setup), SolverStats::mean(s.solve), s.mean_total(),
                            SolverStats::median(s.total), SolverStats::mean(s.prefilter), s.mean_energy(),
-                           s.energy_count ? s.energy_max : -1.0, s.violation_max, s.relres_max, s.memory_max, s.levels,
+                           s.energy_count ? s.energy_max : -1.0, s.violation_max, s.relres_max, s.memory_max, r.matrix_bytes, s.levels,
                            s.operator_complexity, r.steps_done, double(r.box_contacts) / sd, r.max_box_contacts,
                            double(r.springs) / sd, r.max_springs, r.pattern_changes, r.assembly_seconds / sd, r.assembly_peak_mb,
                            r.case_peak_mb, r.process_peak_mb, r.spmv_gbs, 100 * r.spmv_gbs / stream_gbs, s.message.empty() ? r.failure : s.message);
@@ -590,6 +600,26 @@ int bench_linear(const BenchLinearOptions& opt) {
                     s.energy_count ? fmt::format("{:.1e} / {:.1e}", s.mean_energy(), s.energy_max) : (s.key == r.reference ? "reference" : "-"),
                     s.violation_max, s.relres_max, s.memory_max / 1e6, s.levels ? std::to_string(s.levels) : "-",
                     s.operator_complexity > 0 ? fmt::format("{:.2f}", s.operator_complexity) : "-"));
+
+  // Memory: what a user pays to solve with each solver.
+  w("\n## Memory per solver\n\nA = the system matrix every solver is given (values, column indices, row pointers, diagonal "
+    "positions; shared, not owned by any solver). Own = the largest memory the solver reported owning after a setup "
+    "(LinearReport::memory_bytes: preconditioner or factor, work vectors, prefiltered copies). A + own is the memory a user pays "
+    "to solve with that solver alone; the ratio compares it with Diag-PCG's on the same case. (The case peak RSS above also "
+    "holds the simulation, the assembly and every selected solver.)\n\n"
+    "| example | tessellation | vertices | A [MB] | solver | own [MB] | A + own [MB] | (A + own) / Diag-PCG's |\n"
+    "|---|---|---|---|---|---|---|---|\n");
+  for (const auto& r : results) {
+    const SolverStats* dg = r.find("diag_pcg");
+    const double base = dg ? static_cast<double>(r.matrix_bytes + dg->memory_max) : 0.0;
+    for (const auto& s : r.solvers) {
+      if (s.solves == 0) continue;
+      const double total = static_cast<double>(r.matrix_bytes + s.memory_max);
+      w(fmt::format("| {} | {} | {} | {:.1f} | {} | {:.1f} | {:.1f} | {} |\n", ex_name(r.example), tess_name(r.tessellation),
+                    r.vertices, r.matrix_bytes / 1e6, s.label, s.memory_max / 1e6, total / 1e6,
+                    base > 0 ? fmt::format("{:.2f}", total / base) : "-"));
+    }
+  }
 
   // Table 11.1
   w(fmt::format("\n## Table 11.1: SA+PPCG speedup, ours (thesis)\n\nEach cell: T(Diag-PCG) / T(SA+PPCG) and T(direct) / "

@@ -12,14 +12,16 @@ Status BlockJacobi::analyze_pattern(const BlockCsr& A) {
   return Status::success;
 }
 
-Status BlockJacobi::setup(const BlockCsr& A, const SolveContext& /*ctx*/) {
+Status BlockJacobi::setup(const BlockCsr& A, const SolveContext& ctx) { return setup(A, ctx, VertexFilterView{}); }
+
+Status BlockJacobi::setup(const BlockCsr& A, const SolveContext& /*ctx*/, const VertexFilterView& F) {
   const int n = A.block_rows();
   if (inv_.size() != 9 * static_cast<std::size_t>(n)) inv_.assign(9 * static_cast<std::size_t>(n), 0.0);
   message_.clear();
   int bad = n;  // smallest failing row (deterministic whatever the thread count)
 #pragma omp parallel for schedule(static) reduction(min : bad) if (n >= 4096)
   for (int i = 0; i < n; ++i) {
-    const Eigen::Matrix3d D = A.block(A.diagonal(i));
+    const Eigen::Matrix3d D = F.apply(i, i, A.block(A.diagonal(i)));
     Eigen::Map<Block3> out(inv_.data() + 9 * static_cast<std::size_t>(i));
     // Eigen's LLT only rejects non-positive pivots; also reject non-finite input.
     const Eigen::LLT<Eigen::Matrix3d> llt(D);

@@ -17,6 +17,7 @@
 #include "framework/constraints.hpp"
 #include "framework/params.hpp"
 #include "framework/status.hpp"
+#include "linear/bsr.hpp"
 #include "linear/preconditioner.hpp"
 
 namespace weft::linear {
@@ -37,6 +38,9 @@ class BlockJacobi {
   /// finite) gives Status::numerical_issue, and `message()` names its block row. The
   /// context is not used (the blocks of Ahat already carry the constraints).
   Status setup(const BlockCsr& A, const SolveContext& ctx = {});
+  /// The same for the prefiltered operator read through F (Ahat on the fly): inverts
+  /// S_i A_ii S_i + sigma_i (I - S_i) without a copy of Ahat.
+  Status setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilterView& F);
   /// z = B r (z is resized to r's size; no allocation when it already has it).
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   PreconditionerInfo info() const;

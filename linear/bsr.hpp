@@ -29,7 +29,37 @@ inline constexpr int parallel_rows = 2048;
 template <int R, int C>
 using BlockOf = Eigen::Matrix<double, R, C, (C == 1 && R != 1) ? Eigen::ColMajor : Eigen::RowMajor>;
 
+/// Per-vertex 3x3 filters that turn a 3x3 block matrix A into the prefiltered operator
+///   Ahat = S A S + Sigma (I - S)      (spec 04 §7.3; linear/prefilter.hpp)
+/// applied as A is read, so Ahat is never stored: block (i, j) of Ahat is (S_i A_ij) S_j
+/// (the factor on a free vertex is I), plus sigma_i (I - S_i) on the diagonal. Non-owning
+/// (linear::OperatorFilter owns the arrays); an empty view (slot == nullptr) filters nothing.
+struct VertexFilterView {
+  const int* slot = nullptr;      ///< per block row: -1 (free) or index into S and sigma
+  const double* S = nullptr;      ///< 9 row-major doubles per slot: S_i
+  const double* sigma = nullptr;  ///< per slot: sigma_i
+  bool empty() const { return slot == nullptr; }
+  Eigen::Map<const BlockOf<3, 3>> filter(int s) const { return Eigen::Map<const BlockOf<3, 3>>(S + 9 * static_cast<std::ptrdiff_t>(s)); }
+  /// Block (i, j) of Ahat from block A_ij of A.
+  BlockOf<3, 3> apply(int i, int j, const BlockOf<3, 3>& Aij) const {
+    if (!slot) return Aij;
+    const int si = slot[i], sj = slot[j];
+    if (si < 0 && sj < 0) return Aij;
+    BlockOf<3, 3> out = Aij;
+    if (si >= 0) out = (filter(si) * out).eval();
+    if (sj >= 0) out = (out * filter(sj)).eval();
+    if (i == j && si >= 0) out += sigma[si] * (BlockOf<3, 3>::Identity() - filter(si));
+    return out;
+  }
+};
+
 /// Non-owning view of a BSR matrix: #rows block rows, R*C doubles per block.
+///
+/// A square view may be stored by one triangle (`src` non-null, see `SymBlockMatrix`): the
+/// pattern (row_ptr, col) is the full one, and block k of the pattern is stored block
+/// src[k] (>= 0) or the transpose of stored block ~src[k] (< 0). Code that walks the
+/// pattern by k works unchanged through `block(k)`; the products below read the stored
+/// triangle directly.
 template <int R, int C>
 struct BsrView {
   int rows = 0;  ///< block rows
@@ -37,12 +67,79 @@ struct BsrView {
   const int* row_ptr = nullptr;
   const int* col = nullptr;
   const double* val = nullptr;
+  const int* src = nullptr;  ///< square views only: one-triangle storage map (nullptr: block k is stored at k)
+  VertexFilterView filter{};  ///< 3x3 views only: read as the prefiltered operator (see VertexFilterView)
 
   int nnz() const { return rows ? row_ptr[rows] : 0; }
-  Eigen::Map<const BlockOf<R, C>> block(std::ptrdiff_t k) const {
-    return Eigen::Map<const BlockOf<R, C>>(val + static_cast<std::ptrdiff_t>(R * C) * k);
+  /// Whether block k of the pattern is the transpose of its stored block.
+  bool transposed(std::ptrdiff_t k) const { return src && src[k] < 0; }
+  /// The stored block behind block k of the pattern (transpose it when `transposed(k)`).
+  Eigen::Map<const BlockOf<R, C>> stored(std::ptrdiff_t k) const {
+    const std::ptrdiff_t s = src ? (src[k] >= 0 ? src[k] : ~src[k]) : k;
+    return Eigen::Map<const BlockOf<R, C>>(val + static_cast<std::ptrdiff_t>(R * C) * s);
+  }
+  /// Block k of the pattern: a map of the storage for rectangular views, a copy for square
+  /// ones (which may be stored by one triangle).
+  auto block(std::ptrdiff_t k) const {
+    if constexpr (R == C) {
+      if (transposed(k)) return BlockOf<R, C>(stored(k).transpose());
+      return BlockOf<R, C>(stored(k));
+    } else {
+      return stored(k);
+    }
+  }
+  /// Block k of the pattern, in block row i, as the operator sees it: through `filter` when
+  /// there is one (3x3 views), else `block(k)`.
+  auto block(int i, std::ptrdiff_t k) const {
+    if constexpr (R == 3 && C == 3) {
+      if (!filter.empty()) return filter.apply(i, col[k], BlockOf<3, 3>(stored(k)));
+    }
+    return block(k);
   }
 };
+
+/// acc = sum_k A_ik x_col(k) for block row i (one-triangle storage read as stored).
+template <int R, int C>
+inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, const double* x) {
+  using In = Eigen::Map<const Eigen::Matrix<double, C, 1>>;
+  using Blk = Eigen::Map<const BlockOf<R, C>>;
+  constexpr std::ptrdiff_t S = R * C;
+  Eigen::Matrix<double, R, 1> acc = Eigen::Matrix<double, R, 1>::Zero();
+  if constexpr (R == 3 && C == 3) {
+    if (!A.filter.empty()) {
+      // (Ahat x)_i = S_i sum_j A_ij (S_j x_j) + sigma_i (I - S_i) x_i.
+      const VertexFilterView& F = A.filter;
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+        const int j = A.col[k], sj = F.slot[j];
+        if (sj < 0)
+          acc.noalias() += Blk(A.val + S * k) * In(x + 3 * j);
+        else
+          acc.noalias() += Blk(A.val + S * k) * (F.filter(sj) * In(x + 3 * j));
+      }
+      const int si = F.slot[i];
+      if (si >= 0) {
+        const Eigen::Vector3d xi = In(x + 3 * i);
+        const Eigen::Vector3d Sx = F.filter(si) * xi;
+        acc = (F.filter(si) * acc + F.sigma[si] * (xi - Sx)).eval();
+      }
+      return acc;
+    }
+  }
+  if constexpr (R == C) {
+    if (A.src) {
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+        const int s = A.src[k];
+        if (s >= 0)
+          acc.noalias() += Blk(A.val + S * s) * In(x + C * A.col[k]);
+        else
+          acc.noalias() += Blk(A.val + S * ~s).transpose() * In(x + C * A.col[k]);
+      }
+      return acc;
+    }
+  }
+  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) acc.noalias() += Blk(A.val + S * k) * In(x + C * A.col[k]);
+  return acc;
+}
 
 /// The 3x3 BlockCsr seen as a BSR matrix.
 inline BsrView<3, 3> bsr_view(const BlockCsr& A) {
@@ -103,6 +200,10 @@ class BlockMatrix {
     row_ptr_[rows_] = out;
     col_.resize(out);
     val_.resize(static_cast<std::size_t>(R * C) * out);
+    if (removed > 0) {  // resize keeps the capacity: give the pruned blocks back
+      col_.shrink_to_fit();
+      val_.shrink_to_fit();
+    }
     return removed;
   }
   Eigen::MatrixXd to_dense() const {
@@ -119,40 +220,95 @@ class BlockMatrix {
   std::vector<double> val_;
 };
 
+/// Symmetric B x B block matrix stored by its upper triangle (diagonal included), with the
+/// full pattern kept for the algorithms that walk rows (strength, aggregation, P, Galerkin):
+/// per block of the pattern 8 bytes (column, `src`), per stored block B*B doubles. A full
+/// BlockMatrix of a coarse SA operator (6x6 blocks) holds almost twice the values. The
+/// pattern must be structurally symmetric with every diagonal block present.
+template <int B>
+class SymBlockMatrix {
+ public:
+  using Block = BlockOf<B, B>;
+  SymBlockMatrix() = default;
+  /// From a full, structurally symmetric pattern with sorted rows (values zero).
+  SymBlockMatrix(int rows, std::vector<int> row_ptr, std::vector<int> col)
+      : rows_(rows), row_ptr_(std::move(row_ptr)), col_(std::move(col)) {
+    src_.assign(col_.size(), 0);
+    int stored = 0;
+    // Upper blocks numbered row by row (so a row's stored blocks are contiguous), then each
+    // lower block (i, j), j < i, points at the stored (j, i): row j was numbered first.
+    for (int i = 0; i < rows_; ++i)
+      for (int k = row_ptr_[i]; k < row_ptr_[i + 1]; ++k)
+        if (col_[k] >= i) src_[k] = stored++;
+    for (int i = 0; i < rows_; ++i)
+      for (int k = row_ptr_[i]; k < row_ptr_[i + 1]; ++k) {
+        const int j = col_[k];
+        if (j >= i) continue;
+        const int kt = find(j, i);
+        src_[k] = kt >= 0 ? ~src_[kt] : 0;  // kt < 0: the pattern is not symmetric (asserted by tests)
+      }
+    val_.assign(static_cast<std::size_t>(B * B) * stored, 0.0);
+  }
+
+  int rows() const { return rows_; }
+  int cols() const { return rows_; }
+  int nnz() const { return static_cast<int>(col_.size()); }  ///< blocks of the full pattern
+  int stored_blocks() const { return static_cast<int>(val_.size() / (B * B)); }
+  const std::vector<int>& row_ptr() const { return row_ptr_; }
+  const std::vector<int>& col() const { return col_; }
+  /// Per block of the pattern: stored index (>= 0, upper) or ~stored index of its transpose.
+  const std::vector<int>& src() const { return src_; }
+  std::vector<double>& values() { return val_; }
+  const std::vector<double>& values() const { return val_; }
+  /// Stored block s (upper triangle).
+  Eigen::Map<Block> stored(std::ptrdiff_t s) { return Eigen::Map<Block>(val_.data() + B * B * s); }
+  BsrView<B, B> view() const { return {rows_, rows_, row_ptr_.data(), col_.data(), val_.data(), src_.data()}; }
+  /// Index of block (i, j) of the pattern or -1. O(log row length).
+  int find(int i, int j) const {
+    const auto first = col_.begin() + row_ptr_[i], last = col_.begin() + row_ptr_[i + 1];
+    const auto it = std::lower_bound(first, last, j);
+    return (it != last && *it == j) ? static_cast<int>(it - col_.begin()) : -1;
+  }
+  /// The diagonal block of row i (stored; every row holds it).
+  Eigen::Map<Block> diagonal(int i) { return stored(src_[find(i, i)]); }
+  std::size_t memory_bytes() const {
+    return (row_ptr_.capacity() + col_.capacity() + src_.capacity()) * sizeof(int) + val_.capacity() * sizeof(double);
+  }
+  Eigen::MatrixXd to_dense() const {
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(B) * rows_, static_cast<Eigen::Index>(B) * rows_);
+    const auto v = view();
+    for (int i = 0; i < rows_; ++i)
+      for (int k = row_ptr_[i]; k < row_ptr_[i + 1]; ++k) D.template block<B, B>(B * i, B * col_[k]) = v.block(k);
+    return D;
+  }
+  void clear() { *this = SymBlockMatrix(); }
+
+ private:
+  int rows_ = 0;
+  std::vector<int> row_ptr_{0}, col_, src_;
+  std::vector<double> val_;
+};
+
 /// y = A x (y sized R * rows). Parallel over block rows.
 template <int R, int C>
 void spmv(const BsrView<R, C>& A, const double* x, double* y) {
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
-  for (int i = 0; i < A.rows; ++i) {
-    Eigen::Matrix<double, R, 1> acc = Eigen::Matrix<double, R, 1>::Zero();
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-      acc.noalias() += A.block(k) * Eigen::Map<const Eigen::Matrix<double, C, 1>>(x + C * A.col[k]);
-    Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) = acc;
-  }
+  for (int i = 0; i < A.rows; ++i) Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) = row_product(A, i, x);
 }
 
 /// r = f - A x. Parallel over block rows.
 template <int R, int C>
 void residual(const BsrView<R, C>& A, const double* f, const double* x, double* r) {
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
-  for (int i = 0; i < A.rows; ++i) {
-    Eigen::Matrix<double, R, 1> acc = Eigen::Map<const Eigen::Matrix<double, R, 1>>(f + R * i);
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-      acc.noalias() -= A.block(k) * Eigen::Map<const Eigen::Matrix<double, C, 1>>(x + C * A.col[k]);
-    Eigen::Map<Eigen::Matrix<double, R, 1>>(r + R * i) = acc;
-  }
+  for (int i = 0; i < A.rows; ++i)
+    Eigen::Map<Eigen::Matrix<double, R, 1>>(r + R * i) = Eigen::Map<const Eigen::Matrix<double, R, 1>>(f + R * i) - row_product(A, i, x);
 }
 
 /// y += A x. Parallel over block rows (x and y must not alias).
 template <int R, int C>
 void multiply_add(const BsrView<R, C>& A, const double* x, double* y) {
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
-  for (int i = 0; i < A.rows; ++i) {
-    Eigen::Matrix<double, R, 1> acc = Eigen::Map<const Eigen::Matrix<double, R, 1>>(y + R * i);
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-      acc.noalias() += A.block(k) * Eigen::Map<const Eigen::Matrix<double, C, 1>>(x + C * A.col[k]);
-    Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) = acc;
-  }
+  for (int i = 0; i < A.rows; ++i) Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) += row_product(A, i, x);
 }
 
 /// Column-wise listing of a BSR pattern: for block column j, the blocks
@@ -187,7 +343,7 @@ void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const doubl
   for (int j = 0; j < A.cols; ++j) {
     Eigen::Matrix<double, C, 1> acc = Eigen::Matrix<double, C, 1>::Zero();
     for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
-      acc.noalias() += A.block(T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
+      acc.noalias() += A.stored(T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
     Eigen::Map<Eigen::Matrix<double, C, 1>>(y + C * j) = acc;
   }
 }
@@ -221,7 +377,7 @@ int invert_block_diagonal(const BsrView<B, B>& A, std::vector<double>& Dinv) {
       ++bad;
       continue;
     }
-    const Eigen::Matrix<double, B, B> D = A.block(kd);
+    const Eigen::Matrix<double, B, B> D = A.block(i, kd);
     Eigen::LLT<Eigen::Matrix<double, B, B>> llt(D);
     if (llt.info() == Eigen::Success) {
       out = llt.solve(Eigen::Matrix<double, B, B>::Identity());
@@ -245,8 +401,9 @@ int invert_block_diagonal(const BsrView<B, B>& A, std::vector<double>& Dinv) {
 /// of A and P. Both are parallel over coarse rows and deterministic.
 template <int B, int C>
 struct Galerkin {
-  /// Pattern of Ac (sorted rows; every row holds its diagonal).
-  static BlockMatrix<C, C> symbolic(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT) {
+  /// Pattern of Ac (sorted rows; every row holds its diagonal; structurally symmetric),
+  /// stored by its upper triangle.
+  static SymBlockMatrix<C> symbolic(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT) {
     const int nc = P.cols;
     std::vector<std::vector<int>> rows(nc);
 #pragma omp parallel if (nc > parallel_rows / 8)
@@ -277,16 +434,18 @@ struct Galerkin {
       col.insert(col.end(), r.begin(), r.end());
       std::vector<int>().swap(r);
     }
-    return BlockMatrix<C, C>(nc, nc, std::move(ptr), std::move(col));
+    return SymBlockMatrix<C>(nc, std::move(ptr), std::move(col));
   }
 
-  /// Ac's values (Ac from `symbolic` for these patterns of A and P).
-  static void numeric(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT, BlockMatrix<C, C>& Ac) {
+  /// Ac's values (Ac from `symbolic` for these patterns of A and P). Only the upper blocks
+  /// (J >= I) are formed, so Ac is exactly symmetric.
+  static void numeric(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT, SymBlockMatrix<C>& Ac) {
     using TBlock = Eigen::Matrix<double, C, B>;
     const int nc = P.cols;
     double* out_values = Ac.values().data();
     const int* ac_ptr = Ac.row_ptr().data();
     const int* ac_col = Ac.col().data();
+    const int* ac_src = Ac.src().data();
 #pragma omp parallel if (nc > parallel_rows / 8)
     {
       std::vector<int> slot(A.rows, -1), pos(nc, -1), fine;
@@ -297,7 +456,7 @@ struct Galerkin {
         // Row I of P^T A, in the order the fine columns are first met (fixed).
         for (int t = PT.ptr[I]; t < PT.ptr[I + 1]; ++t) {
           const int i = PT.row[t];
-          const Eigen::Matrix<double, C, B> PiT = P.block(PT.blk[t]).transpose();
+          const Eigen::Matrix<double, C, B> PiT = P.stored(PT.blk[t]).transpose();
           for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
             const int j = A.col[k];
             if (slot[j] < 0) {
@@ -306,17 +465,21 @@ struct Galerkin {
               if (T.size() < fine.size()) T.resize(fine.size());
               T[slot[j]].setZero();
             }
-            T[slot[j]].noalias() += PiT * A.block(k);
+            T[slot[j]].noalias() += PiT * A.block(i, k);
           }
         }
-        for (int k = ac_ptr[I]; k < ac_ptr[I + 1]; ++k) pos[ac_col[k]] = k;
-        for (int k = ac_ptr[I]; k < ac_ptr[I + 1]; ++k)
-          Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * k).setZero();
+        // Stored (upper) blocks of row I; the lower ones are the transposes of other rows'.
+        for (int k = ac_ptr[I]; k < ac_ptr[I + 1]; ++k) {
+          pos[ac_col[k]] = ac_src[k] >= 0 ? ac_src[k] : -1;
+          if (ac_src[k] >= 0) Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * ac_src[k]).setZero();
+        }
         for (std::size_t s = 0; s < fine.size(); ++s) {
           const int j = fine[s];
-          for (int k = P.row_ptr[j]; k < P.row_ptr[j + 1]; ++k)
-            Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * pos[P.col[k]]).noalias() +=
-                T[s] * P.block(k);
+          for (int k = P.row_ptr[j]; k < P.row_ptr[j + 1]; ++k) {
+            const int dst = pos[P.col[k]];
+            if (dst >= 0)
+              Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * dst).noalias() += T[s] * P.stored(k);
+          }
           slot[j] = -1;
         }
       }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "linear/bsr.hpp"
 #include "linear/pcg_impl.hpp"
 
 namespace weft::linear {
@@ -56,17 +57,14 @@ double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return s;
 }
 
-// r = S (b - A x).
-void residual(const BlockCsr& A, const Eigen::VectorXd& b, const Eigen::VectorXd& x, const VertexFilters* S,
+// r = S (b - A x); A read through its view (prefiltered on the fly when the view has filters).
+void residual(const BsrView<3, 3>& A, const Eigen::VectorXd& b, const Eigen::VectorXd& x, const VertexFilters* S,
               Eigen::VectorXd& r) {
-  const int n = A.block_rows();
-  const auto& rp = A.row_ptr();
-  const auto& col = A.col();
+  const int n = A.rows;
 #pragma omp parallel for schedule(static) if (n >= parallel_rows)
   for (int i = 0; i < n; ++i) {
     // Sum A x first, as BlockCsr::multiply does: b = A x then gives r = 0 exactly.
-    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-    for (int k = rp[i]; k < rp[i + 1]; ++k) acc.noalias() += A.block(k) * x.segment<3>(3 * col[k]);
+    const Eigen::Vector3d acc = row_product(A, i, x.data());
     Eigen::Vector3d ri = b.segment<3>(3 * i) - acc;
     if (S) S->apply(i, ri);
     r.segment<3>(3 * i) = ri;
@@ -74,15 +72,12 @@ void residual(const BlockCsr& A, const Eigen::VectorXd& b, const Eigen::VectorXd
 }
 
 // q = S A p; returns p^T q (= p^T A p for p in range(S)).
-double multiply_dot(const BlockCsr& A, const Eigen::VectorXd& p, const VertexFilters* S, Eigen::VectorXd& q) {
-  const int n = A.block_rows();
-  const auto& rp = A.row_ptr();
-  const auto& col = A.col();
+double multiply_dot(const BsrView<3, 3>& A, const Eigen::VectorXd& p, const VertexFilters* S, Eigen::VectorXd& q) {
+  const int n = A.rows;
   double pq = 0;
 #pragma omp parallel for schedule(static) reduction(+ : pq) if (n >= parallel_rows)
   for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-    for (int k = rp[i]; k < rp[i + 1]; ++k) acc.noalias() += A.block(k) * p.segment<3>(3 * col[k]);
+    Eigen::Vector3d acc = row_product(A, i, p.data());
     if (S) S->apply(i, acc);
     q.segment<3>(3 * i) = acc;
     pq += p.segment<3>(3 * i).dot(acc);
@@ -147,11 +142,13 @@ void direction(const Eigen::VectorXd& z, double beta, bool first, const VertexFi
 
 }  // namespace
 
-void pcg(const BlockCsr& A, const Eigen::VectorXd& b, Eigen::VectorXd& x, const PrecondView& B,
-         const VertexFilters* S, const KrylovOptions& opt, KrylovWork& w, LinearReport& rep) {
-  WEFT_ASSERT(b.size() == A.rows() && x.size() == A.rows(), "pcg: sizes {} {} for a matrix of {} rows", b.size(),
-              x.size(), A.rows());
-  w.resize(A.rows());
+void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, const PrecondView& B,
+         const VertexFilters* S, const KrylovOptions& opt, KrylovWork& w, LinearReport& rep, const VertexFilterView& F) {
+  WEFT_ASSERT(b.size() == Amat.rows() && x.size() == Amat.rows(), "pcg: sizes {} {} for a matrix of {} rows", b.size(),
+              x.size(), Amat.rows());
+  BsrView<3, 3> A = bsr_view(Amat);
+  A.filter = F;
+  w.resize(Amat.rows());
   rep.iterations = 0;
   rep.indefinite = false;
   rep.residual_history.clear();

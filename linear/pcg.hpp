@@ -143,10 +143,13 @@ struct KrylovOptions {
 };
 
 /// PCG (S == nullptr) or BW98 modified PCG (S given; x must already be feasible) on
-/// A x = b from the x given. Fills status, iterations, residual_history, convergence_rate,
-/// indefinite and message of `rep`. No allocation inside the iteration loop.
+/// A x = b from the x given; with filters F (PPCG on the fly), on Ahat x = b where Ahat =
+/// S A S + Sigma (I - S) is applied from A and F without being stored. Fills status,
+/// iterations, residual_history, convergence_rate, indefinite and message of `rep`. No
+/// allocation inside the iteration loop.
 void pcg(const BlockCsr& A, const Eigen::VectorXd& b, Eigen::VectorXd& x, const PrecondView& B,
-         const VertexFilters* S, const KrylovOptions& opt, KrylovWork& w, LinearReport& rep);
+         const VertexFilters* S, const KrylovOptions& opt, KrylovWork& w, LinearReport& rep,
+         const VertexFilterView& F = {});
 
 /// Diagnostics after a solve of the constrained problem (c may be null): the true relative
 /// residual ||S (b - A x)|| / ||S b||, the constraint violation and, with x_star, the energy
@@ -160,8 +163,9 @@ class PreconditionerSlot {
  public:
   PreconditionerSlot(const typename P::Params& prm, PreconditionerSetup policy) : p_(prm), policy_(policy) {}
   Status analyze_pattern(const BlockCsr& A);
-  /// Builds from M unless frozen (once_per_pattern after a successful build).
-  Status setup(const BlockCsr& M, const SolveContext& ctx);
+  /// Builds from M unless frozen (once_per_pattern after a successful build); with a
+  /// non-empty F, from the operator M read through F (P must support it: `filters_on_the_fly`).
+  Status setup(const BlockCsr& M, const SolveContext& ctx, const VertexFilterView& F = {});
   const P& get() const { return p_; }
   PrecondView view() const;
   Status status() const { return status_; }
@@ -219,7 +223,17 @@ class ModifiedPcg {
   std::string input_error_;
 };
 
-/// Prefiltered PCG; the preconditioner is built from Ahat = S A S + Sigma (I - S).
+/// Whether P can be set up from A read through per-vertex filters (Ahat on the fly):
+/// `setup(A, ctx, VertexFilterView)`.
+template <class P>
+concept FiltersOnTheFly = requires(P& p, const BlockCsr& A, const SolveContext& ctx, const VertexFilterView& F) {
+  { p.setup(A, ctx, F) } -> std::same_as<Status>;
+};
+
+/// Prefiltered PCG; the preconditioner is built from Ahat = S A S + Sigma (I - S). When P
+/// supports it (`FiltersOnTheFly`: BlockJacobi, SaAmg), Ahat is not stored: CG and the
+/// preconditioner read A through the per-vertex filters; otherwise a copy of A's size is
+/// prefiltered (none when A is already prefiltered).
 template <Preconditioner P>
 class Ppcg {
  public:
@@ -251,6 +265,7 @@ class Ppcg {
   const BlockCsr* A_ = nullptr;     // unfiltered
   const BlockCsr* Ahat_ = nullptr;  // A itself without constraints
   const Eigen::VectorXd* x_star_ = nullptr;
+  VertexFilterView filter_;         // non-empty: Ahat applied on the fly from A_
   double setup_seconds_ = 0;
   std::string input_error_;
 };

@@ -26,9 +26,14 @@ Status PreconditionerSlot<P>::analyze_pattern(const BlockCsr& A) {
 }
 
 template <Preconditioner P>
-Status PreconditionerSlot<P>::setup(const BlockCsr& M, const SolveContext& ctx) {
+Status PreconditionerSlot<P>::setup(const BlockCsr& M, const SolveContext& ctx, const VertexFilterView& F) {
   if (built_ && policy_ == PreconditionerSetup::once_per_pattern) return status_;
-  status_ = p_.setup(M, ctx);
+  if constexpr (FiltersOnTheFly<P>) {
+    status_ = p_.setup(M, ctx, F);
+  } else {
+    WEFT_ASSERT(F.empty(), "preconditioner '{}' cannot read a matrix through filters", P::name);
+    status_ = p_.setup(M, ctx);
+  }
   ++builds_;
   built_ = status_ == Status::success;
   if (built_) {
@@ -190,11 +195,20 @@ Status Ppcg<P>::factorize(const BlockCsr& A) {
     return Status::invalid_input;
   }
   input_error_.clear();
-  const BlockCsr& M = pre_.matrix(A);  // timed as prefiltering
   A_ = &A;
-  Ahat_ = &M;
+  // On the fly only while the preconditioner is rebuilt with the filters of every factorize:
+  // a preconditioner frozen by once_per_pattern would keep pointers to filters rebuilt since.
+  bool on_the_fly = false;
+  if constexpr (FiltersOnTheFly<P>) on_the_fly = prm_.setup == PreconditionerSetup::every_factorize;
+  if (on_the_fly) {
+    filter_ = pre_.filter(A).view();  // timed as prefiltering; Ahat is never stored
+    Ahat_ = &A;
+  } else {
+    filter_ = {};
+    Ahat_ = &pre_.matrix(A);  // timed as prefiltering
+  }
   ScopedTimer t(setup_seconds_);
-  return slot_.setup(M, pre_.context());
+  return slot_.setup(*Ahat_, pre_.context(), filter_);
 }
 
 template <Preconditioner P>
@@ -223,7 +237,7 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
       y_.setZero(b.size());
     }
     work_.resize(b.size());
-    detail::pcg(*Ahat_, chat, y_, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep);
+    detail::pcg(*Ahat_, chat, y_, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep, filter_);
     x = y_;
     pre_.finish(x);  // x = z + S y: constraints to round-off
   }

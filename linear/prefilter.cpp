@@ -68,8 +68,45 @@ bool already_prefiltered(const BlockCsr& A, const ConstraintSet& c) {
   return true;
 }
 
+void OperatorFilter::build(const BlockCsr& A, const ConstraintSet& c) {
+  clear();
+  if (c.empty() || already_prefiltered(A, c)) return;
+  WEFT_ASSERT(c.num_vertices() == A.block_rows(), "constraint set of {} vertices for a matrix of {}", c.num_vertices(),
+              A.block_rows());
+  const int n = A.block_rows();
+  slot_.assign(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (c.count(i) == 0) continue;
+    slot_[i] = static_cast<int>(sigma_.size());
+    // The same S_i and sigma_i as prefilter_matrix: the blocks read are bitwise the stored ones.
+    const Block3 Si = c.filter(i);
+    for (int r = 0; r < 3; ++r)
+      for (int q = 0; q < 3; ++q) S_.push_back(Si(r, q));
+    sigma_.push_back(A.block(A.diagonal(i)).trace() / 3.0);
+  }
+}
+
+void OperatorFilter::clear() {
+  std::vector<int>().swap(slot_);
+  std::vector<double>().swap(S_);
+  std::vector<double>().swap(sigma_);
+}
+
+const OperatorFilter& PrefilteredSystem::filter(const BlockCsr& A) {
+  A_ = &A;
+  Ahat_ = BlockCsr();
+  if (!active()) {
+    filter_.clear();
+    return filter_;
+  }
+  ScopedTimer t(seconds_);
+  filter_.build(A, *ctx_.constraints);
+  return filter_;
+}
+
 const BlockCsr& PrefilteredSystem::matrix(const BlockCsr& A) {
   A_ = &A;
+  filter_.clear();
   if (!active()) return A;
   ScopedTimer t(seconds_);
   if (already_prefiltered(A, *ctx_.constraints)) {

@@ -147,7 +147,7 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
     if (kd < 0)
       out.setZero();
     else
-      out = inverse_sqrt<B>(Mat<B>(A.block(kd)));
+      out = inverse_sqrt<B>(Mat<B>(A.block(i, kd)));
   }
   // mu_ij = mu_ji: compute once for j > i, write both blocks (row i alone writes them).
 #pragma omp parallel for schedule(dynamic, 256) if (n > parallel_rows / 4)
@@ -157,7 +157,7 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
       const int j = A.col[k];
       if (j <= i) continue;
       const Eigen::Map<const Mat<B>> Dj(Dis.data() + static_cast<std::ptrdiff_t>(B * B) * j);
-      const Mat<B> M = Di * Mat<B>(A.block(k)) * Dj;
+      const Mat<B> M = Di * Mat<B>(A.block(i, k)) * Dj;
       const double m = measure_block<B>(M, measure);
       mu[k] = m;
       const int kt = find_block(A, j, i);
@@ -459,12 +459,13 @@ void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv,
     Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
       const int j = A.col[k];
+      const Mat<B> Aij = A.block(i, k);
       if (j == i) {
-        Aii += A.block(k);
+        Aii += Aij;
       } else if (strong && !(*strong)[k]) {
-        Aii += A.block(k);  // weak: lumped into the diagonal
+        Aii += Aij;  // weak: lumped into the diagonal
       } else if (agg[j] >= 0) {
-        P.block(slot(i, agg[j])).noalias() -= omega * (Di * A.block(k)) * Q(j);
+        P.block(slot(i, agg[j])).noalias() -= omega * (Di * Aij) * Q(j);
       }
     }
     const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
@@ -501,7 +502,8 @@ namespace {
 template <int B>
 struct Level {
   BsrView<B, B> external;       // the caller's matrix (fine level, reuse != frozen)
-  BlockMatrix<B, B> own;        // Galerkin result (coarse) or private copy (fine, frozen)
+  // Galerkin result (coarse: symmetric, upper triangle stored) or private copy (fine, frozen).
+  std::conditional_t<(B == 6), SymBlockMatrix<6>, BlockMatrix<B, B>> own;
   bool uses_external = false;
   BsrView<B, B> A() const { return uses_external ? external : own.view(); }
   int n() const { return uses_external ? external.rows : own.rows(); }
@@ -594,7 +596,7 @@ void make_coarsest(Level<B>& L, const SaAmg::Params& prm) {
   Eigen::MatrixXd D = Eigen::MatrixXd::Zero(N, N);
   const auto A = L.A();
   for (int i = 0; i < A.rows; ++i)
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(k);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(i, k);
   L.llt.compute(D);
   if (L.llt.info() == Eigen::Success) {
     L.direct = 1;
@@ -616,7 +618,7 @@ double bound_of(const sa::LanczosResult& r, LambdaBound b) {
 
 /// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
 template <int B>
-Status build_level(BuildContext& ctx, Level<B>& L, int index, const NullSpace& K, bool reuse) {
+Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse) {
   const auto& prm = ctx.prm;
   auto& T = ctx.times;
   const auto A = L.A();
@@ -680,6 +682,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, const NullSpace& K
   {
     ScopedTimer t(T.qr);
     tent = sa::tentative_prolongator<B>(L.aggs, K, prm.qr_tolerance);
+    K = NullSpace();  // not needed below: free it before the Galerkin product
   }
   L.dummy = tent.dummy;
   L.deficient = tent.deficient;
@@ -706,19 +709,33 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, const NullSpace& K
     Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);
     // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
     // diagonal so A_c stays SPD; they are decoupled from everything else.
+    // Off-diagonal blocks are stored once, so A_c is symmetric up to its diagonal blocks,
+    // whose (a, b) and (b, a) entries come from different sums: symmetrise those exactly.
+    for (int I = 0; I < nc; ++I) {
+      auto D = C.own.diagonal(I);
+      D = (0.5 * (D + D.transpose())).eval();
+    }
     double sum = 0;
     long count = 0;
     for (int I = 0; I < nc; ++I) {
-      const int kd = C.own.find(I, I);
+      const auto D = C.own.diagonal(I);
       for (int c = 0; c < 6; ++c)
-        if (!L.dummy[6 * I + c]) sum += C.own.block(kd)(c, c), ++count;
+        if (!L.dummy[6 * I + c]) sum += D(c, c), ++count;
     }
     const double mean = count > 0 ? sum / count : 1.0;
     for (int I = 0; I < nc; ++I) {
-      const int kd = C.own.find(I, I);
+      auto D = C.own.diagonal(I);
       for (int c = 0; c < 6; ++c)
-        if (L.dummy[6 * I + c]) C.own.block(kd)(c, c) = mean;
+        if (L.dummy[6 * I + c]) D(c, c) = mean;
     }
+  }
+  if (prm.reuse == SaReuse::none) {
+    // Nothing reads the coarsening structure again before the next setup rebuilds it: give
+    // it back now (only `aggregates` refreshes values on the kept structure).
+    std::vector<std::uint8_t>().swap(L.strong);
+    std::vector<std::uint8_t>().swap(L.special);
+    std::vector<int>().swap(L.aggs.node_agg);
+    std::vector<std::uint8_t>().swap(L.dummy);
   }
   L.coarsest = false;
   ctx.stats.push_back(st);
@@ -727,12 +744,14 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, const NullSpace& K
   C.x.resize(6 * nc);
   C.res.resize(6 * nc);
   C.d.resize(6 * nc);
-  return build_level<6>(ctx, C, index + 1, tent.Kc, reuse);
+  return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse);
 }
 
 }  // namespace
 
-Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) {
+Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) { return setup(A, ctx, VertexFilterView{}); }
+
+Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilterView& filter) {
   Impl& I = *impl_;
   stats_.message.clear();
   if (!ctx.positions) {
@@ -767,9 +786,16 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) {
     if (prm_.reuse == SaReuse::frozen) {
       F.own = BlockMatrix<3, 3>(n, n, A.row_ptr(), A.col());
       F.own.values() = A.values();
+      if (!filter.empty()) {  // the copy holds Ahat itself: the filters need not outlive setup
+        BsrView<3, 3> v = bsr_view(A);
+        v.filter = filter;
+        for (int i = 0; i < n; ++i)
+          for (int k = A.row_ptr()[i]; k < A.row_ptr()[i + 1]; ++k) F.own.block(k) = v.block(i, k);
+      }
       F.uses_external = false;
     } else {
       F.external = bsr_view(A);
+      F.external.filter = filter;
       F.uses_external = true;
     }
     F.res.resize(3 * n);
@@ -781,7 +807,7 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) {
     }
     stats_.levels.clear();
     BuildContext bc{prm_, times, stats_.levels, I.coarse};
-    status = build_level<3>(bc, F, 0, K, reuse);
+    status = build_level<3>(bc, F, 0, std::move(K), reuse);
   }
   times.total = total;
   stats_.times = times;
@@ -919,7 +945,7 @@ Eigen::MatrixXd SaAmg::level_matrix(int l) const {
     constexpr int B = decltype(bs)::value;
     Eigen::MatrixXd D = Eigen::MatrixXd::Zero(B * A.rows, B * A.cols);
     for (int i = 0; i < A.rows; ++i)
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(k);
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) D.block<B, B>(B * i, B * A.col[k]) = A.block(i, k);
     return D;
   };
   if (l == 0) return dense(impl_->fine->A(), std::integral_constant<int, 3>());

@@ -225,6 +225,11 @@ class SaAmg {
   /// ctx.positions is required (rotation modes); ctx.constraints, if given, filters K.
   /// Except under `frozen`, A must stay alive and unchanged while `apply` is used.
   Status setup(const BlockCsr& A, const SolveContext& ctx);
+  /// The same for the prefiltered operator Ahat = S A S + Sigma (I - S) read from A through
+  /// the per-vertex filters F (PPCG on the fly, no copy of Ahat): every block the setup and
+  /// the fine-level smoother read is filtered as it is read, bitwise the block
+  /// `prefilter_matrix` would store. Under `frozen` the private fine copy is prefiltered.
+  Status setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilterView& F);
   /// z = B r: one V(1,1) cycle from a zero guess.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   PreconditionerInfo info() const;

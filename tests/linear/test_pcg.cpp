@@ -527,7 +527,7 @@ TEST_SUITE("linear") {
     CHECK(p.rep.solve_seconds > 0);
     const std::size_t n = sys.A.rows();
     CHECK(q.rep.memory_bytes >= (4 * n + 3 * n) * sizeof(double));  // r, z, p, q + 3x3 inverse blocks
-    CHECK(p.rep.memory_bytes > q.rep.memory_bytes);                 // + Ahat and y
+    CHECK(p.rep.memory_bytes > q.rep.memory_bytes);                 // + y, the prefiltered rhs and the filters
     CHECK(p.rep.levels == 0);
   }
 }
