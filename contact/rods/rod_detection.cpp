@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
+#include <numeric>
 #include <tuple>
 
 #include "contact/detection/bvh.hpp"
@@ -45,7 +47,62 @@ RodEdges::RodEdges(const RodCurves& c) {
   }
 }
 
+/// The material point of contact k on side a (b: side = 1) at the start of the step.
+Eigen::Vector3d contact_point(const RodCurves& c, const RodContact& k, int side) {
+  const int rod = side == 0 ? k.rod_a : k.rod_b, e = c.first[rod] + (side == 0 ? k.edge_a : k.edge_b);
+  const double s = side == 0 ? k.s_a : k.s_b;
+  return (1 - s) * c.x0[e] + s * c.x0[e + 1];
+}
+
+/// Merges the near-duplicates of a sorted list of rod-rod contacts (file comment).
+void merge_near_duplicates(const RodCurves& c, const RodDetectionParams& p, std::vector<RodContact>& cs) {
+  if (p.merge_fraction <= 0 || cs.size() < 2) return;
+  const int n = static_cast<int>(cs.size());
+  // Candidates share (rod_a, rod_b) and have edge_a within 1: visit them in that order.
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  auto key = [&](int i) { return std::tie(cs[i].rod_a, cs[i].rod_b, cs[i].edge_a, cs[i].edge_b); };
+  std::sort(order.begin(), order.end(), [&](int i, int j) { return key(i) < key(j); });
+  std::vector<int> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (int u = 0; u < n; ++u) {
+    const RodContact& ki = cs[order[u]];
+    for (int w = u + 1; w < n; ++w) {
+      const RodContact& kj = cs[order[w]];
+      if (kj.rod_a != ki.rod_a || kj.rod_b != ki.rod_b || kj.edge_a > ki.edge_a + 1) break;
+      if (!rods::near_duplicates(c, ki, kj, p)) continue;
+      const int ri = find(order[u]), rj = find(order[w]);
+      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+    }
+  }
+  // Per cluster, the smallest gap (first in the sort order on a tie) stays.
+  std::vector<int> keep(n, -1);
+  for (int i = 0; i < n; ++i) {
+    int& k = keep[find(i)];
+    if (k < 0 || cs[i].gap < cs[k].gap) k = i;
+  }
+  std::vector<RodContact> out;
+  out.reserve(n);
+  for (int i = 0; i < n; ++i)
+    if (keep[find(i)] == i) out.push_back(cs[i]);
+  cs = std::move(out);
+}
+
 }  // namespace detail
+
+bool near_duplicates(const RodCurves& c, const RodContact& i, const RodContact& j, const RodDetectionParams& p) {
+  if (p.merge_fraction <= 0 || i.kind != RodContact::Kind::rod_rod || j.kind != RodContact::Kind::rod_rod) return false;
+  if (i.rod_a != j.rod_a || i.rod_b != j.rod_b || std::abs(i.edge_a - j.edge_a) > 1 || std::abs(i.edge_b - j.edge_b) > 1)
+    return false;
+  if (i.normal.dot(j.normal) < std::cos(p.merge_angle * std::numbers::pi / 180)) return false;
+  const double reach = p.merge_fraction * (c.radius[i.rod_a] + c.radius[i.rod_b]);
+  return (detail::contact_point(c, i, 0) - detail::contact_point(c, j, 0)).norm() <= reach &&
+         (detail::contact_point(c, i, 1) - detail::contact_point(c, j, 1)).norm() <= reach;
+}
 
 bool contact_less(const RodContact& a, const RodContact& b) {
   return std::forward_as_tuple(a.kind, a.rod_a, a.edge_a, a.rod_b, a.edge_b, a.obstacle, a.obstacle_edge, a.s_a) <
@@ -109,6 +166,7 @@ std::vector<RodContact> detect_rod_rod(const RodCurves& c, const RodDetectionPar
         found.push_back(rc);
       });
   std::sort(out.begin(), out.end(), contact_less);  // already in this order; kept explicit
+  detail::merge_near_duplicates(c, p, out);
   return out;
 }
 

@@ -20,8 +20,28 @@
 /// Normal: from b to a along the closest points' difference; for (nearly) intersecting
 /// centrelines the normalised cross product of the edges, oriented by the start
 /// configuration and the relative motion (thick_ccd.hpp). Every pair within reach is
-/// reported, so a rod lying along another gives contacts at several neighbouring edge pairs
-/// (some closest at a shared vertex); nothing is merged.
+/// reported, so a rod lying along another gives contacts at several neighbouring edge pairs.
+///
+/// **Near-duplicates** (`merge_fraction`, `merge_angle`). Where a rod wraps around another
+/// (a rod draped across a rod bends around it), the polyline's vertex next to the crossing
+/// is a slight valley seen from the other rod, and the closest points of the two edges at
+/// that vertex both lie a hair's breadth from it: the same crossing is found twice, with
+/// normals a fraction of a degree apart. Two such constraints are redundant: the Delassus
+/// operator is singular on them, the multipliers are not unique (any split of the load),
+/// and a convergent contact solve stalls (issue 7). So two rod-rod contacts of the same
+/// pair of rods whose edges are the same or adjacent on both rods are merged when their
+/// contact points, as material points at the start of the step (the times of impact of
+/// the two may differ: one found by proximity, the other by CCD), lie within
+/// merge_fraction (r_a + r_b) of each other on both rods and their normals within
+/// merge_angle: the one with the smaller gap stays (the first in the sort order on a
+/// tie), chains of them merge into one. What a merge gives up: the dropped contact's gap
+/// differs from the kept one's by at most about |p_i - p_j| |n_i - n_j| plus the change of
+/// the points' offset over the step. At the defaults (10 % of r_a + r_b, 5 degrees) that is
+/// at most 0.009 (r_a + r_b), below the polyline's own geometric error at such a kink (an
+/// edge of length l turned by theta deviates from the smooth curve by about l theta^2 / 8,
+/// 0.00095 l at 5 degrees: more as soon as l > 10 (r_a + r_b), as for hair). The V-06
+/// scenes need the 5 degrees: a rod draped across another bends by about 3 degrees at the
+/// vertex above it. merge_fraction = 0 reports every contact.
 ///
 /// **Rod-obstacle** (`detect_rod_obstacles`; sphere, box, plane and mesh obstacles with
 /// scripted motion, posed with `ObstaclePose::at`). Obstacles are always treated
@@ -133,6 +153,8 @@ struct RodDetectionParams {
   int self_skip = 2;              ///< >= 2: same-rod edge pairs fewer than this many edges apart are never contacts
   double ccd_tolerance = 1e-9;    ///< eta [m] > 0: CCD accuracy (toi early by ~eta / speed; thick_ccd.hpp)
   int ccd_max_iterations = 10000;  ///< CCD distance evaluations per pair before a conservative hit, >= 1
+  double merge_fraction = 0.1;   ///< rod-rod near-duplicates closer than this times r_a + r_b are merged (0: never; file comment)
+  double merge_angle = 5;        ///< [degrees] ... and whose normals are within this angle
   template <class V>
   void visit(V& v) {
     v.field("proximity", proximity,
@@ -144,16 +166,27 @@ struct RodDetectionParams {
     v.field("ccd_tolerance", ccd_tolerance, {Unit::length, Range::gt(0), "CCD tolerance eta: the time of impact is the first time within eta of contact"});
     v.field("ccd_max_iterations", ccd_max_iterations,
             {Unit::none, Range::closed(1, 1e9), "CCD distance evaluations per pair before a conservative hit"});
+    v.field("merge_fraction", merge_fraction,
+            {Unit::none, Range::closed(0, 1),
+             "rod-rod contacts of adjacent edges whose points are closer than this times the sum of the radii (and normals within merge_angle) are one contact: the one with the smaller gap is kept (0: keep all)"});
+    v.field("merge_angle", merge_angle, {Unit::none, Range::closed(0, 90), "largest angle between the normals of merged rod-rod contacts [degrees]"});
   }
   static Checker validate(const RodDetectionParams& p) {
     Checker c("rod_detection");
     c.require(p.proximity >= 0, "proximity", p.proximity, ">= 0")
         .require(p.self_skip >= 2, "self_skip", p.self_skip, ">= 2 (adjacent edges share a vertex and always touch)")
         .require(p.ccd_tolerance > 0, "ccd_tolerance", p.ccd_tolerance, "> 0")
-        .require(p.ccd_max_iterations >= 1, "ccd_max_iterations", p.ccd_max_iterations, ">= 1");
+        .require(p.ccd_max_iterations >= 1, "ccd_max_iterations", p.ccd_max_iterations, ">= 1")
+        .require(p.merge_fraction >= 0 && p.merge_fraction <= 1, "merge_fraction", p.merge_fraction, "[0, 1]")
+        .require(p.merge_angle >= 0 && p.merge_angle <= 90, "merge_angle", p.merge_angle, "[0, 90] degrees");
     return c;
   }
 };
+
+/// Whether two rod-rod contacts are near-duplicates on the curves c (file comment: same
+/// rods, same or adjacent edges on both, material points within merge_fraction (r_a + r_b)
+/// at the start of the step, normals within merge_angle). False when merging is off.
+bool near_duplicates(const RodCurves& c, const RodContact& i, const RodContact& j, const RodDetectionParams& p);
 
 /// Rod-rod contacts (file comment), sorted. \throws ConfigError for invalid params;
 /// inconsistent curves (sizes, a rod with fewer than 2 vertices) fail WEFT_ASSERT.

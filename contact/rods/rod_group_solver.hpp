@@ -31,8 +31,9 @@
 ///     regularised Levenberg-Marquardt step (J^T J + nu I) delta = -J^T Phi; when none
 ///     decreases the merit, nu is raised, then `fallback_sweeps` Gauss-Seidel sweeps.
 /// Known limit: two near-duplicate contacts on a sliding rod (the same crossing found from
-/// two edges) can still stall near 1e-9 m: the V-06/V-07, V-13 and V-14 tests are marked
-/// may_fail for it.
+/// two edges) stall it near 1e-9 m; the detection merges them (rod_detection.hpp,
+/// `merge_fraction`, `merge_angle`), with which the V-06/V-07, V-13 and V-14 tests pass.
+/// With merging off (merge_fraction = 0) the stall comes back.
 /// It stops when max_k |Phi_k| <= tolerance, after `max_iterations` steps, or when the
 /// fallbacks stop making progress; it returns the best iterate (smallest max_k |Phi_k|),
 /// so it is never worse than the Gauss-Seidel iterate it starts from. Semismooth Newton on

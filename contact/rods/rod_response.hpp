@@ -178,7 +178,11 @@ class RodResponse {
       ScopedTimer t(rep.response_seconds);
       size_t added = 0;
       for (const RodContact& c : found) {
-        if (std::any_of(contacts_.begin(), contacts_.end(), [&](const RodContactRows& k) { return same_pair(k.geometry, c); }))
+        // Known, or a near-duplicate of a known one (the other edge at the same crossing:
+        // rod_detection.hpp) that the merge of this round kept instead.
+        if (std::any_of(contacts_.begin(), contacts_.end(), [&](const RodContactRows& k) {
+              return same_pair(k.geometry, c) || near_duplicates(curves, k.geometry, c, prm_.detection);
+            }))
           continue;
         RodContactRows k;
         if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;

@@ -180,6 +180,77 @@ TEST_SUITE("contact") {
     }
   }
 
+  TEST_CASE("rod detection: the two edges at a slight valley of a rod give one contact") {
+    // Rod 1 along y is draped over rod 0 (along x, below): its arms fall away by kink / 2 on
+    // either side of the vertex above rod 0. Seen from rod 0 that is a valley: the closest
+    // points of both edges lie just beside the vertex (about h kink / 2 from it), one
+    // crossing found twice. Merged within 2 degrees, both kept beyond.
+    const double r = 1e-4;
+    for (const double kink_deg : {0.5, 1.5, 4.0}) {
+      CAPTURE(kink_deg);
+      const double k = kink_deg * M_PI / 180, h = 2 * r - 1e-7;  // 0.1 um overlap at the vertex
+      RodCurves c;
+      add_rod(c, {-0.01, 0, 0}, {0.01, 0, 0}, 3, r);
+      const Vector3d v(0.0003, 0, h), arm(0, 0.004 * std::cos(k / 2), -0.004 * std::sin(k / 2));  // arms fall by k/2
+      const Vector3d left(v.x(), -arm.y(), arm.z()), right = arm;
+      for (const Vector3d& x : {Vector3d(v + left), v, Vector3d(v + right)}) c.x0.push_back(x);
+      c.first.push_back(static_cast<int>(c.x0.size()));
+      c.radius.push_back(r);
+      c.x1 = c.x0;
+      RodDetectionParams p;
+      p.merge_fraction = 0;
+      const auto raw = detect_rod_rod(c, p);
+      REQUIRE(raw.size() == 2);  // edges 0 and 1 of rod 1, each closest just beside the vertex
+      CHECK(raw[0].edge_b != raw[1].edge_b);
+      CHECK(std::abs(raw[0].s_b - 0.5) > 0.49);
+      const double angle = std::acos(std::clamp(raw[0].normal.dot(raw[1].normal), -1.0, 1.0)) * 180 / M_PI;
+      MESSAGE("kink " << kink_deg << " degrees: normals " << angle << " degrees apart, gaps " << raw[0].gap << " and " << raw[1].gap);
+      CHECK(angle == doctest::Approx(kink_deg).epsilon(0.05));
+      p.merge_fraction = 0.05;
+      p.merge_angle = 2;
+      const auto merged = detect_rod_rod(c, p);
+      CHECK(near_duplicates(c, raw[0], raw[1], p) == (kink_deg < p.merge_angle));
+      if (kink_deg < p.merge_angle) {
+        REQUIRE(merged.size() == 1);
+        CHECK(merged[0].gap == std::min(raw[0].gap, raw[1].gap));  // the deeper one stays
+      } else {
+        CHECK(merged.size() == 2);
+      }
+    }
+  }
+
+  TEST_CASE("rod detection: merging never leaves a raw contact without a kept one beside it") {
+    // Rod soups: every contact dropped by the merge is a near-duplicate of a kept one, no
+    // gap of a dropped contact is below the kept one's, and merging is off at fraction 0.
+    int dropped = 0;
+    for (unsigned seed : {4u, 5u}) {
+      const RodCurves c = rod_soup(40, 12, 0.3, 0.03, 0.003, 0.02, seed);
+      RodDetectionParams p;
+      p.proximity = 0.002;
+      p.merge_fraction = 0;
+      const auto raw = detect_rod_rod(c, p);
+      p.merge_fraction = 0.05;
+      const auto kept = detect_rod_rod(c, p);
+      CHECK(kept.size() <= raw.size());
+      for (const RodContact& k : raw) {
+        const bool is_kept = std::any_of(kept.begin(), kept.end(), [&](const RodContact& q) { return same(q, k); });
+        if (is_kept) continue;
+        ++dropped;
+        CHECK(std::any_of(kept.begin(), kept.end(), [&](const RodContact& q) { return near_duplicates(c, q, k, p) && q.gap <= k.gap; }));
+      }
+    }
+    // Parallel rods lying along each other: neighbouring edge pairs meet at shared vertices.
+    RodCurves c;
+    add_rod(c, {0, 0.025, 0}, {1, 0.025, 0}, 5, 0.015);
+    add_rod(c, {0.1, 0, 0}, {1.1, 0, 0}, 5, 0.015);
+    RodDetectionParams p;
+    const size_t merged = detect_rod_rod(c, p).size();
+    p.merge_fraction = 0;
+    MESSAGE("rod soups: " << dropped << " near-duplicates merged; parallel rods: " << detect_rod_rod(c, p).size() << " contacts, "
+                          << merged << " after merging");
+    CHECK(merged < detect_rod_rod(c, p).size());
+  }
+
   TEST_CASE("rod detection: no rods or no obstacles give no contacts") {
     const RodCurves none;
     CHECK(detect_rod_rod(none, {}).empty());
@@ -238,6 +309,7 @@ TEST_SUITE("contact") {
       RodCurves c;
       add_rod(c, {0, 0.025, 0}, {1, 0.025, 0}, 5, 0.015);
       add_rod(c, {0.1, 0, 0}, {1.1, 0, 0}, 5, 0.015);
+      p.merge_fraction = 0;  // every edge pair (the merge of near-duplicates is tested below)
       const auto cs = detect_rod_rod(c, p);
       REQUIRE(!cs.empty());
       for (const RodContact& k : cs) {
@@ -300,6 +372,7 @@ TEST_SUITE("contact") {
     c.first.push_back(static_cast<int>(c.x0.size()));
     c.radius = {0.01};
     RodDetectionParams p;
+    p.merge_fraction = 0;
     const auto cs = detect_rod_rod(c, p);
     REQUIRE(!cs.empty());
     int min_apart = 1 << 30, max_apart = 0;
@@ -583,6 +656,7 @@ TEST_SUITE("contact") {
         const RodCurves c = rod_soup(40, 12, 0.3, 0.03, 0.003, 0.02, seed);
         RodDetectionParams p;
         p.rod_ccd = ccd;
+        p.merge_fraction = 0;
         p.proximity = 0.001 * seed;
         p.self_skip = 1 + static_cast<int>(seed);
         if (p.self_skip < 2) p.self_skip = 2;
