@@ -101,6 +101,7 @@ StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, 
     res.steps = k + 1;
     newton += r.newton.iterations;
     res.newton_max = std::max(res.newton_max, r.newton.iterations);
+    res.contact_steps += r.contact.contacts > 0;
     if (!r.ok()) {
       const bool nan = r.message.find("non-finite") != std::string::npos;
       res.outcome = nan ? Stability::diverged : Stability::not_converged;
@@ -155,31 +156,38 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
   std::filesystem::create_directories(opt.out_dir);
   const std::string csv_path = (std::filesystem::path(opt.out_dir) / "stability.csv").string();
   std::ofstream csv(csv_path);
-  csv << "combo,dt,key,value,outcome,steps,steps_planned,max_strain,energy_change,newton_mean,newton_max,wall_seconds,message\n";
+  csv << "combo,dt,key,value,outcome,steps,steps_planned,max_strain,energy_change,newton_mean,newton_max,wall_seconds,contact_steps,"
+         "message\n";
   std::vector<StabilityResult> all;
   for (const auto& combo : combos)
     for (double dt : opt.dts)
       for (const auto& v : values) {
         StabilityResult r = run_cell(opt, combo, dt, v);
-        csv << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.combo, r.dt, opt.vary_key, csv_field(r.value),
+        csv << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.combo, r.dt, opt.vary_key, csv_field(r.value),
                            to_string(r.outcome), r.steps, r.steps_planned, r.max_strain, r.energy_ratio, r.newton_mean,
-                           r.newton_max, r.wall_seconds, csv_field(r.message));
+                           r.newton_max, r.wall_seconds, r.contact_steps, csv_field(r.message));
         csv.flush();
         if (!opt.quiet)
           fmt::print(stderr, "{} dt={} {}={}: {} ({} of {} steps, {:.1f} s)\n", r.combo, r.dt, opt.vary_key, r.value,
                      to_string(r.outcome), r.steps, r.steps_planned, r.wall_seconds);
         all.push_back(std::move(r));
       }
-  // The map: one block per combination, dt down, values across.
+  // The map: one block per combination, dt down, values across. When some run of the sweep
+  // had contacts, a stable run without any is `o`: it did not test the contact method.
+  const bool any_contact = std::any_of(all.begin(), all.end(), [](const StabilityResult& r) { return r.contact_steps > 0; });
+  auto cell = [&](const StabilityResult& r) {
+    return any_contact && r.outcome == Stability::stable && r.contact_steps == 0 ? 'o' : symbol(r.outcome);
+  };
   std::string map;
   size_t k = 0;
   for (size_t c = 0; c < combos.size(); ++c) {
-    map += fmt::format("{}  (. stable, D diverged, N not converged, S excessive strain, ? invalid)\n", all[k].combo);
+    map += fmt::format("{}  (. stable, {}D diverged, N not converged, S excessive strain, ? invalid)\n", all[k].combo,
+                       any_contact ? "o stable without any contact, " : "");
     map += fmt::format("{:>12} | {}\n", "dt \\ " + (opt.vary_key.empty() ? std::string("-") : opt.vary_key),
                        fmt::join(values, " "));
     for (size_t i = 0; i < opt.dts.size(); ++i) {
       std::string row;
-      for (size_t j = 0; j < values.size(); ++j, ++k) row += std::string(std::max<size_t>(1, values[j].size()) - 1, ' ') + symbol(all[k].outcome) + " ";
+      for (size_t j = 0; j < values.size(); ++j, ++k) row += std::string(std::max<size_t>(1, values[j].size()) - 1, ' ') + cell(all[k]) + " ";
       map += fmt::format("{:>12} | {}\n", fmt::format("{:.4g}", opt.dts[i]), row);
     }
     map += "\n";

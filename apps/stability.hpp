@@ -40,6 +40,9 @@ struct StabilityResult {
   int steps = 0, steps_planned = 0;
   double max_strain = 0, energy_ratio = 0, wall_seconds = 0, newton_mean = 0;
   int newton_max = 0;
+  /// Steps with at least one contact. A run that never touched anything says nothing about
+  /// a contact method: the map marks it `o` when other runs of the sweep had contacts.
+  int contact_steps = 0;
   std::string message;
 };
 

@@ -15,6 +15,9 @@ Run with the system interpreter (/usr/bin/python3): Debian's matplotlib lives in
       time per stage: one stacked bar per row from the columns named P<stage>.
   weft_plot.py histories JSONL [--out DIR] [--key K] [--label COL]
       convergence histories: one line per JSON record, the list under K (log y).
+  weft_plot.py scaling CSV --x COL --y COL[,COL...] --group COL [--out DIR] [--title T]
+      growth with problem size (log-log): one panel per y column, one line per value of the
+      group column (e.g. iterations and time per solve against vertices, per linear solver).
 
 Exit status: 0 with the files written, 3 when matplotlib is missing (the message says how to
 install it), 2 on bad input (the message names the file, the row and the column).
@@ -28,6 +31,7 @@ import sys
 
 OUTCOMES = [  # (csv value, legend, colour, map symbol of stability_map.txt)
     ("stable", "stable", "#4daf4a", "."),
+    ("stable_no_contact", "stable, never in contact", "#b8e186", "o"),
     ("diverged", "diverged", "#e41a1c", "D"),
     ("not_converged", "not converged", "#ff7f00", "N"),
     ("excessive_strain", "excessive strain", "#984ea3", "S"),
@@ -101,6 +105,12 @@ def plot_stability(args):
         if r["outcome"] not in known:
             raise InputError("{}: row {}: column 'outcome' = '{}' is not one of {}".format(
                 args.csv, i + 2, r["outcome"], ", ".join(known)))
+    # A stable run that never touched anything, when other runs did (column contact_steps,
+    # written by weft stability): it did not test the contact method.
+    if any(float(r.get("contact_steps") or 0) > 0 for r in rows):
+        for r in rows:
+            if r["outcome"] == "stable" and float(r.get("contact_steps") or 0) == 0:
+                r["outcome"] = "stable_no_contact"
     plt = load_pyplot()
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -236,6 +246,30 @@ def plot_histories(args):
     save(fig, args.out, "histories")
 
 
+def plot_scaling(args):
+    ys = [c for c in args.y.split(",") if c]
+    rows = read_csv(args.csv, [args.x, args.group] + ys)
+    groups = list(dict.fromkeys(r[args.group] for r in rows))
+    data = {g: [] for g in groups}
+    for i, r in enumerate(rows):
+        data[r[args.group]].append([number(args.csv, i, r, args.x, positive=True)] +
+                                   [number(args.csv, i, r, c, positive=True) for c in ys])
+    plt = load_pyplot()
+    fig, axes = plt.subplots(1, len(ys), figsize=(5.2 * len(ys), 4.2), squeeze=False)
+    for k, (ax, col) in enumerate(zip(axes[0], ys)):
+        for g in groups:
+            pts = sorted(data[g])
+            ax.loglog([p[0] for p in pts], [p[k + 1] for p in pts], "o-", label=g)
+        ax.set_xlabel(args.x)
+        ax.set_ylabel(col)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    if args.title:
+        fig.suptitle(args.title)
+    fig.tight_layout()
+    save(fig, args.out, "scaling")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="weft_plot.py", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -263,6 +297,14 @@ def main(argv=None):
     s.add_argument("--key", default="residuals")
     s.add_argument("--label", default="label")
     s.set_defaults(fn=plot_histories)
+    s = sub.add_parser("scaling", help="growth with problem size, one line per group (log-log)")
+    s.add_argument("csv")
+    s.add_argument("--out", default=".")
+    s.add_argument("--x", required=True)
+    s.add_argument("--y", required=True, help="one column or several, comma-separated (one panel each)")
+    s.add_argument("--group", required=True)
+    s.add_argument("--title", default="")
+    s.set_defaults(fn=plot_scaling)
     args = p.parse_args(argv)
     try:
         args.fn(args)

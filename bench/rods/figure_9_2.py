@@ -7,7 +7,10 @@ the ADONIS/linear and ADONIS/impulse ratios, and the thesis result alongside.
 Largest stable step h*: the largest h of the sweep such that h and every smaller step that
 was run are stable (a run above a failure that happens to be stable, e.g. because its
 large steps damp the whip so much that it never reaches the wall, does not count; such
-cells are listed). Usage: figure_9_2.py OUT"""
+cells are listed). With the contact_steps column of weft stability, a second table counts
+only runs that touched the wall (h* in contact): at large steps the whip lags so far behind
+the handle that it never reaches the wall, and such a run says nothing about the contact
+response (map symbol o). Usage: figure_9_2.py OUT"""
 import csv
 import glob
 import os
@@ -34,7 +37,13 @@ def main(out):
     speeds = sorted({k[1] for k in rows})
     dts = sorted({k[2] for k in rows}, reverse=True)
     fields = ["combo", "dt", "key", "value", "outcome", "steps", "steps_planned", "max_strain", "energy_change",
-              "newton_mean", "newton_max", "wall_seconds", "message"]
+              "newton_mean", "newton_max", "wall_seconds", "contact_steps", "message"]
+    has_contacts = all("contact_steps" in r and r["contact_steps"] != "" for r in rows.values())
+
+    def symbol(r):
+        if has_contacts and r["outcome"] == "stable" and int(r["contact_steps"]) == 0:
+            return "o"
+        return SYMBOL.get(r["outcome"], "?")
     with open(os.path.join(out, "stability.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
@@ -46,17 +55,18 @@ def main(out):
 
     lines = []
     for c in combos:
-        lines.append(f"{NAMES[c]} ({c})  . stable, D diverged, N not converged, S excessive strain, - not run")
+        lines.append(f"{NAMES[c]} ({c})  . stable, " + ("o stable but never in contact, " if has_contacts else "") +
+                     "D diverged, N not converged, S excessive strain, - not run")
         lines.append(f"{'dt':>10} | " + " ".join(f"{s:>5g}" for s in speeds) + "   rad/s")
         for h in dts:
-            cells = [SYMBOL.get(rows[(c, s, h)]["outcome"], "?") if (c, s, h) in rows else "-" for s in speeds]
+            cells = [symbol(rows[(c, s, h)]) if (c, s, h) in rows else "-" for s in speeds]
             lines.append(f"{fmt_dt(h):>10} | " + " ".join(f"{x:>5}" for x in cells))
         lines.append("")
     map_text = "\n".join(lines)
     with open(os.path.join(out, "stability_map.txt"), "w") as f:
         f.write(map_text)
 
-    hstar, notes, complete = {}, [], {}
+    hstar, notes, complete, hstar_contact = {}, [], {}, {}
     for c in combos:
         for s in speeds:
             run = [h for h in sorted(dts) if (c, s, h) in rows]
@@ -72,6 +82,9 @@ def main(out):
                                  f"(max strain {float(rows[(c, s, h)]['max_strain']):.3g})")
             hstar[(c, s)] = best
             complete[(c, s)] = len(run) == len(dts) and not failed_below
+            if has_contacts:  # the largest h* cell that also touched the wall
+                inside = [h for h in run if best is not None and h <= best and int(rows[(c, s, h)]["contact_steps"]) > 0]
+                hstar_contact[(c, s)] = max(inside) if inside else None
     info = ""
     p = os.path.join(out, "sweep_info.txt")
     if os.path.exists(p):
@@ -100,6 +113,18 @@ def main(out):
                 ratios.append(f">= {r:g}" if a == largest else f"{r:g}")
         md.append(f"| {s:g} | " + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
     md += ["", "A ratio written >= is a lower bound: ADONIS was stable up to the largest step of the sweep.", ""]
+    if has_contacts:
+        md += ["## h* in contact: counting only runs that touched the wall", "",
+               "| speed [rad/s] | " + " | ".join(NAMES[c] for c in combos) + " | ADONIS / linear | ADONIS / impulse |",
+               "|---|" + "---|" * (len(combos) + 2)]
+        for s in speeds:
+            cells = ["none" if hstar_contact.get((c, s)) is None else fmt_dt(hstar_contact[(c, s)]) for c in combos]
+            ratios = []
+            for base in ("rods_linear", "rods_impulse"):
+                a, b = hstar_contact.get(("rods_adonis", s)), hstar_contact.get((base, s))
+                ratios.append("n/a" if a is None or b is None else f"{a / b:g}")
+            md.append(f"| {s:g} | " + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
+        md.append("")
     if notes:
         md += ["## Stable cells above a failure (not counted in h*)", ""] + [f"- {n}" for n in notes] + [""]
     missing = [(c, s, h) for c in combos for s in speeds for h in dts if (c, s, h) not in rows]
