@@ -528,12 +528,13 @@ struct Level {
 
   // Work vectors (apply is const; one apply at a time).
   mutable Eigen::VectorXd f, x, res, d;
+  mutable Eigen::VectorXd wr, wx;  // extra coarse cycles (W-cycle levels)
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() +
                     PT.memory_bytes() + vb(dummy);
-    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
+    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
     if (direct == 2) m += sizeof(double) * (ldlt.matrixLDLT().size() + 2 * ldlt.rows());
     return m;
@@ -567,7 +568,10 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.lanczos_steps >= 1 && p.lanczos_steps <= 100, "lanczos_steps", p.lanczos_steps, "in [1, 100]")
       .require(p.chebyshev_degree >= 1 && p.chebyshev_degree <= 10, "chebyshev_degree", p.chebyshev_degree, "in [1, 10]")
       .require(p.chebyshev_lower > 0 && p.chebyshev_lower < p.chebyshev_upper, "chebyshev_lower", p.chebyshev_lower,
-               "in (0, chebyshev_upper)");
+               "in (0, chebyshev_upper)")
+      .require(p.cycle_gamma >= 1 && p.cycle_gamma <= 4, "cycle_gamma", p.cycle_gamma, "in [1, 4]")
+      .require(p.cycle_gamma_levels >= 1 && p.cycle_gamma_levels <= 30, "cycle_gamma_levels", p.cycle_gamma_levels,
+               "in [1, 30]");
   return c;
 }
 
@@ -744,6 +748,9 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   C.x.resize(6 * nc);
   C.res.resize(6 * nc);
   C.d.resize(6 * nc);
+  const bool extra_cycles = prm.cycle_gamma > 1 && index + 1 <= prm.cycle_gamma_levels;
+  C.wr.resize(extra_cycles ? 6 * nc : 0);
+  C.wx.resize(extra_cycles ? 6 * nc : 0);
   return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse);
 }
 
@@ -911,6 +918,14 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   residual(A, f, x, L.res.data());
   spmv_transpose(L.P.view(), L.PT, L.res.data(), C.f.data());
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
+  // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
+  // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
+  if (!C.coarsest && index + 1 <= prm.cycle_gamma_levels)
+    for (int r = 1; r < prm.cycle_gamma; ++r) {
+      residual(C.A(), C.f.data(), C.x.data(), C.wr.data());
+      cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data());
+      C.x += C.wx;
+    }
   multiply_add(L.P.view(), C.x.data(), x);
   chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
 }

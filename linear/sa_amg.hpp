@@ -22,6 +22,9 @@
 /// Smoother (§5.2): degree-k Chebyshev on D^-1 A over [lower, upper] * lambda, the same
 /// polynomial before and after the coarse correction, so that B is symmetric (Appendix A);
 /// it is positive definite while lambda_max(D^-1 A) < (lower + upper) * lambda.
+/// With cycle_gamma = 2 the first cycle_gamma_levels coarse levels are corrected by two
+/// cycles from them (B_c = 2 V_c - V_c A_c V_c: symmetric, and SPD as V_c is a convergent
+/// SPD iteration).
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
@@ -190,6 +193,13 @@ class SaAmg {
     int chebyshev_degree = 2;
     double chebyshev_lower = 0.1;      ///< a / lambda
     double chebyshev_upper = 1.1;      ///< b / lambda
+    /// Coarse cycles per visit of levels 1 .. cycle_gamma_levels (gamma of the mu-cycle): 1 is
+    /// the V-cycle; 2 makes the correction of such a level two V-cycles from it (a W-cycle
+    /// there, B_l = 2 V_l - V_l A_l V_l, still SPD). Spec 04 §2.4: W-cycles converge under the
+    /// weak approximation property alone, which one-step smoothed rigid-mode aggregates of a
+    /// bending-dominated sheet keep while the V-cycle degrades with depth.
+    int cycle_gamma = 1;
+    int cycle_gamma_levels = 1;        ///< how many coarse levels (from level 1) get cycle_gamma
     SaReuse reuse = SaReuse::none;
 
     template <class V>
@@ -210,6 +220,10 @@ class SaAmg {
       v.field("chebyshev_degree", chebyshev_degree, {Unit::none, Range::closed(1, 10), "degree of the Chebyshev smoother (pre and post)"});
       v.field("chebyshev_lower", chebyshev_lower, {Unit::none, Range::open(0, 1), "lower end of the damped interval, relative to lambda"});
       v.field("chebyshev_upper", chebyshev_upper, {Unit::none, Range::gt(0), "upper end of the damped interval, relative to lambda"});
+      v.field("cycle_gamma", cycle_gamma,
+              {Unit::none, Range::closed(1, 4), "coarse cycles per visit of the first cycle_gamma_levels coarse levels (1: V-cycle, 2: W there)"});
+      v.field("cycle_gamma_levels", cycle_gamma_levels,
+              {Unit::none, Range::closed(1, 30), "coarse levels, counted from level 1, that get cycle_gamma cycles"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
     }
   };
