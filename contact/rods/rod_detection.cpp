@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <numeric>
 #include <tuple>
@@ -54,41 +55,28 @@ Eigen::Vector3d contact_point(const RodCurves& c, const RodContact& k, int side)
   return (1 - s) * c.x0[e] + s * c.x0[e + 1];
 }
 
-/// Merges the near-duplicates of a sorted list of rod-rod contacts (file comment).
+/// Merges the near-duplicates of a sorted list of rod-rod contacts (file comment): deepest
+/// first, a contact is dropped when it is a near-duplicate of one already kept, so every
+/// dropped contact has a kept near-duplicate at most as deep (not transitive: a chain of
+/// near-duplicates keeps more than one). The output stays in the sort order.
 void merge_near_duplicates(const RodCurves& c, const RodDetectionParams& p, std::vector<RodContact>& cs) {
   if (p.merge_fraction <= 0 || cs.size() < 2) return;
   const int n = static_cast<int>(cs.size());
-  // Candidates share (rod_a, rod_b) and have edge_a within 1: visit them in that order.
-  std::vector<int> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  auto key = [&](int i) { return std::tie(cs[i].rod_a, cs[i].rod_b, cs[i].edge_a, cs[i].edge_b); };
-  std::sort(order.begin(), order.end(), [&](int i, int j) { return key(i) < key(j); });
-  std::vector<int> parent(n);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (int u = 0; u < n; ++u) {
-    const RodContact& ki = cs[order[u]];
-    for (int w = u + 1; w < n; ++w) {
-      const RodContact& kj = cs[order[w]];
-      if (kj.rod_a != ki.rod_a || kj.rod_b != ki.rod_b || kj.edge_a > ki.edge_a + 1) break;
-      if (!rods::near_duplicates(c, ki, kj, p)) continue;
-      const int ri = find(order[u]), rj = find(order[w]);
-      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
-    }
-  }
-  // Per cluster, the smallest gap (first in the sort order on a tie) stays.
-  std::vector<int> keep(n, -1);
-  for (int i = 0; i < n; ++i) {
-    int& k = keep[find(i)];
-    if (k < 0 || cs[i].gap < cs[k].gap) k = i;
+  std::vector<int> by_gap(n);
+  std::iota(by_gap.begin(), by_gap.end(), 0);
+  std::stable_sort(by_gap.begin(), by_gap.end(), [&](int i, int j) { return cs[i].gap < cs[j].gap; });
+  std::map<std::pair<int, int>, std::vector<int>> kept;  // per pair of rods
+  std::vector<char> keep(n, 0);
+  for (int i : by_gap) {
+    std::vector<int>& same_rods = kept[{cs[i].rod_a, cs[i].rod_b}];
+    if (std::any_of(same_rods.begin(), same_rods.end(), [&](int k) { return rods::near_duplicates(c, cs[k], cs[i], p); })) continue;
+    same_rods.push_back(i);
+    keep[i] = 1;
   }
   std::vector<RodContact> out;
   out.reserve(n);
   for (int i = 0; i < n; ++i)
-    if (keep[find(i)] == i) out.push_back(cs[i]);
+    if (keep[i]) out.push_back(cs[i]);
   cs = std::move(out);
 }
 

@@ -33,8 +33,8 @@
 /// contact points, as material points at the start of the step (the times of impact of
 /// the two may differ: one found by proximity, the other by CCD), lie within
 /// merge_fraction (r_a + r_b) of each other on both rods and their normals within
-/// merge_angle: the one with the smaller gap stays (the first in the sort order on a
-/// tie), chains of them merge into one. What a merge gives up: the dropped contact's gap
+/// merge_angle: deepest first, a contact is dropped when it is a near-duplicate of one
+/// already kept (so every dropped contact has a kept one at most as deep beside it). What a merge gives up: the dropped contact's gap
 /// differs from the kept one's by at most about |p_i - p_j| |n_i - n_j| plus the change of
 /// the points' offset over the step. At the defaults (10 % of r_a + r_b, 5 degrees) that is
 /// at most 0.009 (r_a + r_b), below the polyline's own geometric error at such a kink (an
