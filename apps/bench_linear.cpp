@@ -312,8 +312,14 @@ std::string fmt_speedup(double v) { return std::isfinite(v) && v > 0 ? fmt::form
 }  // namespace
 
 int bench_linear(const BenchLinearOptions& opt) {
-  const SolverSettings settings{opt.tolerance, opt.max_iterations};
-  const std::vector<SolverEntry> all = available_solvers(settings);
+  const SolverSettings settings{opt.tolerance, opt.max_iterations, opt.sa_settings};
+  std::vector<SolverEntry> all;
+  try {
+    all = available_solvers(settings);
+  } catch (const ConfigError& e) {  // a bad --sa setting, named with its valid range
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_config;
+  }
   auto has = [&](const std::string& key) {
     return std::any_of(all.begin(), all.end(), [&](const SolverEntry& e) { return e.key == key; });
   };
@@ -416,7 +422,7 @@ int bench_linear(const BenchLinearOptions& opt) {
               {"max_iterations", opt.max_iterations}, {"dt", 2e-3}, {"fps", fps}, {"steps_per_frame", steps_per_frame},
               {"step_budget", opt.step_budget}, {"stream_triad_gbs", stream_gbs}, {"stream_array_mb", stream_n * 8 / (1 << 20)},
               {"contact_model", "simple analytic box contact (top face; normal constraints, post-step projection)"},
-              {"sizes", sizes}};
+              {"sizes", sizes}, {"sa_settings", opt.sa_settings}};
     jl << meta.dump() << "\n";
     csv << "example,tessellation,m,vertices,solver,solves,failures,analyses,mean_iterations,mean_rate,mean_setup_s,mean_solve_s,"
            "mean_total_s,median_total_s,mean_prefilter_s,mean_energy_error,max_energy_error,max_constraint_violation,"
@@ -536,6 +542,9 @@ int bench_linear(const BenchLinearOptions& opt) {
   w(fmt::format("Direct solver: **{}**{} -- a stand-in for the thesis's MKL PARDISO, which is faster (PARDISO is not available "
                 "here), so the 'vs direct' speedups are not the thesis's 'vs PARDISO'.\n\n",
                 direct_label, cholmod ? "" : " (CHOLMOD not compiled in: -DWEFT_WITH_CHOLMOD=ON)"));
+  if (!opt.sa_settings.empty())
+    w(fmt::format("SA preconditioner settings (`--sa`, sa_ppcg and sa_mpcg): **{}**; the other keys at their defaults.\n\n",
+                  fmt::join(opt.sa_settings, " ")));
   w(fmt::format(
       "Setup: 1 m x 1 m cotton-like sheet (0.15 kg/m^2, Y = 20 MPa, nu = 0.3, h = 0.3 mm), StVK isotropic membrane + theta hinge "
       "bending, gravity, dt = 2 ms. One Baraff-Witkin linearly implicit step per time step: A = M + dt^2 H (PSD-projected element "

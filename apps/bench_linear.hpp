@@ -35,6 +35,9 @@ struct BenchLinearOptions {
   double step_budget = 4e6;                ///< cap: steps <= max(2, step_budget / vertices)
   int max_iterations = 20000;              ///< CG iteration limit of the iterative solvers
   double tolerance = 1e-5;                 ///< relative M^-1-norm residual (thesis)
+  /// KEY=VALUE settings of the smoothed-aggregation preconditioner of sa_ppcg and sa_mpcg
+  /// (the keys of the scene's linear.preconditioner section, `weft keys`), e.g. cycle_gamma=2.
+  std::vector<std::string> sa_settings;
   std::string out_dir;                     ///< "" = out/bench_linear
   bool quick = false;                      ///< m = 30 (961 vertices) only, 2 steps (for tests)
   int threads = 0;                         ///< OpenMP threads (0: all)
@@ -72,6 +75,7 @@ struct SolverEntry {
 struct SolverSettings {
   double tolerance = 1e-5;
   int max_iterations = 20000;
+  std::vector<std::string> sa_settings;  ///< KEY=VALUE of the SA preconditioner (BenchLinearOptions::sa_settings)
 };
 
 /// Every solver of this build, in report order (apps/bench_linear_solvers.cpp).

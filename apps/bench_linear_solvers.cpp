@@ -4,6 +4,7 @@
 
 #include "apps/bench_linear.hpp"
 #include "framework/concepts.hpp"
+#include "framework/params_json.hpp"
 #include "linear/direct.hpp"
 #include "linear/pcg.hpp"
 #include "linear/prefilter.hpp"
@@ -73,6 +74,27 @@ typename L::Params krylov(const SolverSettings& s) {
   return p;
 }
 
+/// The SA solvers' parameters with the --sa KEY=VALUE settings read like the scene's
+/// linear.preconditioner section (unknown keys and out-of-range values throw ConfigError
+/// naming them). A VALUE is read as JSON (numbers, true/false), else as a string.
+template <class L>
+typename L::Params sa_krylov(const SolverSettings& s) {
+  Json pre = Json::object();
+  for (const std::string& kv : s.sa_settings) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw ConfigError("invalid --sa setting:", {fmt::format("'{}' is not KEY=VALUE (e.g. cycle_gamma=2)", kv)});
+    const std::string value = kv.substr(eq + 1);
+    Json v = Json::parse(value, nullptr, false);
+    pre[kv.substr(0, eq)] = v.is_discarded() ? Json(value) : v;
+  }
+  typename L::Params p = read_params<typename L::Params>(Json{{"preconditioner", pre}}, "--sa", "invalid --sa setting:");
+  p.tolerance = s.tolerance;
+  p.max_iterations = s.max_iterations;
+  L::Params::validate(p).throw_if_failed("invalid --sa setting:");
+  return p;
+}
+
 }  // namespace
 
 std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
@@ -90,9 +112,9 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   using linear::SaMpcg;
   using linear::SaPpcg;
   list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
-                  maker<SaPpcg>(krylov<SaPpcg>(s))});
+                  maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
-                  maker<SaMpcg>(krylov<SaMpcg>(s))});
+                  maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC
   list.push_back({"petsc_gamg", "PETSc GAMG", "PETSc CG + GAMG (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
                   false, maker<linear::PetscGamg>(krylov<linear::PetscGamg>(s))});

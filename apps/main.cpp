@@ -95,6 +95,9 @@ int main(int argc, char** argv) {
   cmd_bench_linear->add_option("--max-vertices", bench_linear.max_vertices, "skip sizes with more vertices")->check(CLI::PositiveNumber);
   cmd_bench_linear->add_option("--solvers", bench_linear.solvers, "solvers to compare (default: all available; see --list-solvers)");
   cmd_bench_linear->add_flag("--list-solvers", bench_linear.list_solvers, "print the solvers of this build and exit");
+  cmd_bench_linear->add_option("--sa", bench_linear.sa_settings,
+                               "KEY=VALUE settings of the SA preconditioner of sa_ppcg and sa_mpcg, the keys of a scene's "
+                               "linear.preconditioner (weft keys), e.g. --sa cycle_gamma=2 cycle_gamma_levels=1");
   cmd_bench_linear->add_option("--steps", bench_linear.steps, "steps per case before the cap (default: the thesis's frames at 30 fps)")
       ->check(CLI::PositiveNumber);
   cmd_bench_linear->add_option("--step-budget", bench_linear.step_budget, "cap: steps <= max(2, budget / vertices) (default 4e6)")

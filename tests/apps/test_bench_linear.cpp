@@ -117,4 +117,35 @@ TEST_SUITE("apps") {
     CHECK(r.output.find("unknown example 'flapping'") != std::string::npos);
     CHECK(r.output.find("'nosuch' is not available") != std::string::npos);
   }
+
+  TEST_CASE("bench: weft bench linear --sa sets the SA preconditioner and names a bad key or value") {
+    const fs::path out = temp_dir("bench_linear_sa");
+    Result bad = run_weft("bench linear --quick --examples pinned --tessellations regular --solvers sa_ppcg --sa cycle_gamma=5 --out " +
+                          (out / "bad").string());
+    CAPTURE(bad.output);
+    CHECK(bad.code == 2);
+    CHECK(bad.output.find("cycle_gamma = 5 is out of range: valid in [1, 4]") != std::string::npos);
+    CHECK_FALSE(fs::exists(out / "bad"));
+    bad = run_weft("bench linear --quick --examples pinned --tessellations regular --solvers sa_ppcg --sa nosuch=1 --out " + (out / "bad").string());
+    CHECK(bad.code == 2);
+    CHECK(bad.output.find("nosuch is not a known key") != std::string::npos);
+    // The W-cycle (cycle_gamma = 2) needs fewer iterations than the default V-cycle on the same systems.
+    std::map<int, double> its;
+    for (const int gamma : {1, 2}) {
+      const fs::path dir = out / fmt::format("g{}", gamma);
+      const Result r = run_weft(fmt::format("bench linear --examples pinned --tessellations regular --sizes 40 --steps 2 --solvers sa_ppcg "
+                                            "--threads 1 --sa cycle_gamma={} --out {}", gamma, dir.string()));
+      CAPTURE(r.output);
+      REQUIRE(r.code == 0);
+      const auto lines = split_lines(slurp(dir / "bench_linear.csv"));
+      REQUIRE(lines.size() == 2);
+      std::vector<std::string> cols;
+      std::stringstream ss(lines[1]);
+      for (std::string c; std::getline(ss, c, ',');) cols.push_back(c);
+      its[gamma] = std::stod(cols.at(8));  // mean_iterations
+      CHECK(json::parse(split_lines(slurp(dir / "bench_linear.jsonl")).front())["sa_settings"][0] == fmt::format("cycle_gamma={}", gamma));
+    }
+    MESSAGE("mean SA+PPCG iterations at 1681 vertices: V-cycle " << its[1] << ", W-cycle " << its[2]);
+    CHECK(its[2] < its[1]);
+  }
 }
