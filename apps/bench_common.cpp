@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <thread>
 
 #ifndef WEFT_SOURCE_DIR
 #define WEFT_SOURCE_DIR ""
@@ -51,6 +52,17 @@ std::string git_describe(const std::string& source_dir) {
   pclose(p);
   while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
   return out.empty() ? "unknown" : out;
+}
+
+Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads) {
+  return {{"record", "meta"},
+          {"bench", bench},
+          {"git", git},
+          {"compiler", __VERSION__},
+          {"flags", build_flags()},
+          {"cpu", cpu},
+          {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
+          {"threads", threads}};
 }
 
 }  // namespace weft::app

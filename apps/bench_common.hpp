@@ -4,6 +4,9 @@
 /// the source tree is, wall-clock timing and CSV quoting.
 #include <chrono>
 #include <string>
+#include <string_view>
+
+#include "framework/params_json.hpp"
 
 namespace weft::app {
 
@@ -21,5 +24,8 @@ std::string source_dir();
 const char* build_flags();
 /// A CSV field: double-quoted, inner quotes doubled, newlines turned into spaces.
 std::string csv_field(const std::string& s);
+/// The first JSONL record of a bench: {"record": "meta", "bench", "git", "compiler", "flags",
+/// "cpu", "hardware_threads", "threads"}; the bench adds its own keys.
+Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads);
 
 }  // namespace weft::app

@@ -133,21 +133,13 @@ int bench_contact(const BenchContactOptions& opt) {
     fmt::print(stderr, "error: {}: {}\n", out.string(), e.what());
     return exit_config;
   }
-  jl << Json{{"record", "meta"},
-             {"bench", "contact"},
-             {"git", git},
-             {"compiler", __VERSION__},
-             {"flags", build_flags()},
-             {"cpu", cpu},
-             {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
-             {"threads", threads},
-             {"scene", scene_path},
+  Json meta = meta_record("contact", git, cpu, threads);
+  meta.update(Json{{"scene", scene_path},
              {"overrides", opt.overrides},
              {"skip", skip},
              {"check", opt.check},
-             {"quick", opt.quick}}
-            .dump()
-     << '\n';
+             {"quick", opt.quick}});
+  jl << meta.dump() << '\n';
   csv << "scene,combo,resolution,vertices,faces,first_step,steps,seconds_per_step,median_step_s,detection_share,"
          "response_share,solve_share,contact_stage_share,energy_share,hessian_share,linear_setup_share,linear_solve_share,"
          "contacts_per_step,max_contacts,contact_steps,obstacle_contacts_per_step,proximity_contacts_per_step,"

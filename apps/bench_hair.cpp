@@ -427,24 +427,16 @@ int bench_hair(const BenchHairOptions& opt) {
     return exit_config;
   }
   csv.flush();
-  jl << Json{{"record", "meta"},
-             {"bench", "hair"},
-             {"git", git},
-             {"compiler", __VERSION__},
-             {"flags", build_flags()},
-             {"cpu", cpu},
-             {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
-             {"threads", threads},
-             {"scene", scene_path},
+  Json meta = meta_record("hair", git, cpu, threads);
+  meta.update(Json{{"scene", scene_path},
              {"rods", rods},
              {"overrides", opt.overrides},
              {"strategies", strategies},
              {"dts", dts},
              {"duration", duration > 0 ? duration : scene_duration},
              {"strain_threshold", opt.strain_threshold},
-             {"quick", opt.quick}}
-            .dump()
-     << std::endl;
+             {"quick", opt.quick}});
+  jl << meta.dump() << std::endl;
 
   const std::string title = fmt::format(
       "# weft bench hair: {} ({} rods of {} vertices)\n\nHardware: {} ({} hardware threads, {} OpenMP threads); git {}; {}\n\n"

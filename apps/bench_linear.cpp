@@ -415,14 +415,13 @@ int bench_linear(const BenchLinearOptions& opt) {
     jl.open(out / "bench_linear.jsonl");
     csv.open(out / "bench_linear.csv");
     if (!jl || !csv) throw std::runtime_error("cannot open the output files");
-    Json meta{{"record", "meta"},        {"bench", "linear"},      {"git", git},
-              {"compiler", __VERSION__}, {"flags", build_flags()}, {"cpu", cpu},
-              {"hardware_threads", hw_threads}, {"threads", threads}, {"quick", opt.quick},
+    Json meta = meta_record("linear", git, cpu, threads);
+    meta.update(Json{{"quick", opt.quick},
               {"direct_solver", direct_label}, {"reference", chosen.front().key}, {"tolerance", opt.tolerance},
               {"max_iterations", opt.max_iterations}, {"dt", 2e-3}, {"fps", fps}, {"steps_per_frame", steps_per_frame},
               {"step_budget", opt.step_budget}, {"stream_triad_gbs", stream_gbs}, {"stream_array_mb", stream_n * 8 / (1 << 20)},
               {"contact_model", "simple analytic box contact (top face; normal constraints, post-step projection)"},
-              {"sizes", sizes}, {"sa_settings", opt.sa_settings}};
+              {"sizes", sizes}, {"sa_settings", opt.sa_settings}});
     jl << meta.dump() << "\n";
     csv << "example,tessellation,m,vertices,solver,solves,failures,analyses,mean_iterations,mean_rate,mean_setup_s,mean_solve_s,"
            "mean_total_s,median_total_s,mean_prefilter_s,mean_energy_error,max_energy_error,max_constraint_violation,"

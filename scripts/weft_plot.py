@@ -273,38 +273,25 @@ def plot_scaling(args):
 def main(argv=None):
     p = argparse.ArgumentParser(prog="weft_plot.py", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
-    s = sub.add_parser("stability", help="stability map from stability.csv")
-    s.add_argument("csv")
-    s.add_argument("--out", default=".")
-    s.add_argument("--title", default="")
-    s.set_defaults(fn=plot_stability)
-    s = sub.add_parser("pareto", help="error against run time with the Pareto front")
-    s.add_argument("csv")
-    s.add_argument("--out", default=".")
-    s.add_argument("--x", default="wall_seconds")
-    s.add_argument("--y", default="rms_error")
-    s.add_argument("--label", default="combo")
-    s.set_defaults(fn=plot_pareto)
-    s = sub.add_parser("stages", help="time per stage, stacked")
-    s.add_argument("csv")
-    s.add_argument("--out", default=".")
-    s.add_argument("--label", default="combo")
-    s.add_argument("--prefix", default="seconds_")
-    s.set_defaults(fn=plot_stages)
-    s = sub.add_parser("histories", help="convergence histories")
-    s.add_argument("jsonl")
-    s.add_argument("--out", default=".")
-    s.add_argument("--key", default="residuals")
-    s.add_argument("--label", default="label")
-    s.set_defaults(fn=plot_histories)
-    s = sub.add_parser("scaling", help="growth with problem size, one line per group (log-log)")
-    s.add_argument("csv")
-    s.add_argument("--out", default=".")
-    s.add_argument("--x", required=True)
-    s.add_argument("--y", required=True, help="one column or several, comma-separated (one panel each)")
-    s.add_argument("--group", required=True)
-    s.add_argument("--title", default="")
-    s.set_defaults(fn=plot_scaling)
+    # kind, help, plot function, input argument, options: a default or add_argument's keywords
+    kinds = [
+        ("stability", "stability map from stability.csv", plot_stability, "csv", {"title": ""}),
+        ("pareto", "error against run time with the Pareto front", plot_pareto, "csv",
+         {"x": "wall_seconds", "y": "rms_error", "label": "combo"}),
+        ("stages", "time per stage, stacked", plot_stages, "csv", {"label": "combo", "prefix": "seconds_"}),
+        ("histories", "convergence histories", plot_histories, "jsonl", {"key": "residuals", "label": "label"}),
+        ("scaling", "growth with problem size, one line per group (log-log)", plot_scaling, "csv",
+         {"x": {"required": True},
+          "y": {"required": True, "help": "one column or several, comma-separated (one panel each)"},
+          "group": {"required": True}, "title": ""}),
+    ]
+    for name, text, fn, inp, options in kinds:
+        s = sub.add_parser(name, help=text)
+        s.add_argument(inp)
+        s.add_argument("--out", default=".")
+        for key, spec in options.items():
+            s.add_argument("--" + key, **(spec if isinstance(spec, dict) else {"default": spec}))
+        s.set_defaults(fn=fn)
     args = p.parse_args(argv)
     try:
         args.fn(args)

@@ -17,28 +17,9 @@
 # Environment: WEFT (default build/release/apps/weft), TOUR_QUICK=1 (same as --quick).
 set -euo pipefail
 set -f  # the overrides hold brackets: no globbing
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-QUICK=${TOUR_QUICK:-0}
-OUT=""
-for a in "$@"; do
-  case "$a" in
-    --quick) QUICK=1 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
-    -*) echo "contact.sh: unknown option $a (usage: contact.sh [--quick] [OUT_DIR])" >&2; exit 2 ;;
-    *) OUT=$a ;;
-  esac
-done
-OUT=${OUT:-$ROOT/out/tour/contact}
-WEFT=${WEFT:-$ROOT/build/release/apps/weft}
-case "$OUT" in /*) ;; *) OUT=$PWD/$OUT ;; esac   # paths as given, from the caller's directory
-case "$WEFT" in /*) ;; *) WEFT=$PWD/$WEFT ;; esac
-cd "$ROOT"
-[ -x "$WEFT" ] || { echo "contact.sh: no weft binary at $WEFT (build it with scripts/setup.sh, or set WEFT)" >&2; exit 2; }
-if [ -d "$OUT" ] && [ -n "$(ls -A "$OUT")" ] && ! grep -qs "^started" "$OUT/info.txt"; then
-  echo "contact.sh: $OUT is not empty and not an output of this script: give a new or empty directory" >&2; exit 2
-fi
-rm -rf "$OUT"  # an earlier output of this script (its info.txt says so)
-mkdir -p "$OUT"
+# shellcheck source=scripts/tour/common.sh
+source "$(dirname "$0")/common.sh"
+tour_init contact.sh contact 17 "$@"
 # (5 cm, 0, 0) and +x turned by -0.3 rad about z: the rod starts outside the wall; no gravity
 SETUP="rods.0.root=[0.0477668,-0.0147760,0] rods.0.direction=[0.9553365,-0.2955202,0] gravity=[0,0,0]"
 if [ "$QUICK" = 1 ]; then
@@ -47,17 +28,10 @@ else
   SPEEDS=1,3,10,20; DTS="0.1 0.05 0.02 0.01 0.005 0.002 0.001 0.0005"; DURATION=1
 fi
 export OMP_NUM_THREADS=1  # one rod: nothing to share between threads
-echo "started $(date -u +%FT%TZ); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(nproc --all) CPUs; weft $WEFT; quick=$QUICK; speeds $SPEEDS rad/s; dt $DTS s; duration $DURATION s" > "$OUT/info.txt"
+tour_started "speeds $SPEEDS rad/s; dt $DTS s; duration $DURATION s"
 # shellcheck disable=SC2086
 "$WEFT" stability scenes/whip.json $SETUP --dt $DTS --vary "rods.0.motion.angular_velocity.2=$SPEEDS" \
   --combos rods_impulse rods_linear rods_adonis --duration "$DURATION" -o "$OUT" -q
-echo "finished $(date -u +%FT%TZ)" >> "$OUT/info.txt"
+tour_finished
 # stability.csv's contact_steps tells a run that met the wall from one that never reached it
-# (tour_summary.py re-runs the stable cells with `weft run` only for a CSV without that column)
-# shellcheck disable=SC2086  # SETUP is a list of overrides
-/usr/bin/python3 - "$OUT/setup.json" "$DURATION" $SETUP <<'PY'
-import json, sys
-json.dump({"scene": "scenes/whip.json", "duration": float(sys.argv[2]), "overrides": sys.argv[3:],
-           "vary_key": "rods.0.motion.angular_velocity.2"}, open(sys.argv[1], "w"), indent=2)
-PY
-/usr/bin/python3 scripts/tour/tour_summary.py contact "$OUT" --weft "$WEFT"
+/usr/bin/python3 scripts/tour/tour_summary.py contact "$OUT"

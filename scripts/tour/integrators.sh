@@ -17,34 +17,16 @@
 # Environment: WEFT (default build/release/apps/weft), TOUR_QUICK=1 (same as --quick).
 set -euo pipefail
 set -f  # overrides hold brackets: no globbing
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-QUICK=${TOUR_QUICK:-0}
-OUT=""
-for a in "$@"; do
-  case "$a" in
-    --quick) QUICK=1 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
-    -*) echo "integrators.sh: unknown option $a (usage: integrators.sh [--quick] [OUT_DIR])" >&2; exit 2 ;;
-    *) OUT=$a ;;
-  esac
-done
-OUT=${OUT:-$ROOT/out/tour/integrators}
-WEFT=${WEFT:-$ROOT/build/release/apps/weft}
-case "$OUT" in /*) ;; *) OUT=$PWD/$OUT ;; esac   # paths as given, from the caller's directory
-case "$WEFT" in /*) ;; *) WEFT=$PWD/$WEFT ;; esac
-cd "$ROOT"
-[ -x "$WEFT" ] || { echo "integrators.sh: no weft binary at $WEFT (build it with scripts/setup.sh, or set WEFT)" >&2; exit 2; }
-if [ -d "$OUT" ] && [ -n "$(ls -A "$OUT")" ] && ! grep -qs "^started" "$OUT/info.txt"; then
-  echo "integrators.sh: $OUT is not empty and not an output of this script: give a new or empty directory" >&2; exit 2
-fi
-rm -rf "$OUT"  # an earlier output of this script (its info.txt says so)
+# shellcheck source=scripts/tour/common.sh
+source "$(dirname "$0")/common.sh"
+tour_init integrators.sh integrators 17 "$@"
 mkdir -p "$OUT/runs"
 export OMP_NUM_THREADS=1  # 4 and 121 vertices: threads only wait for each other, worst on a loaded machine
 MAXIT=10000
 [ "$QUICK" = 1 ] && MAXIT=2000
 DTS="0.004166666666666667 0.020833333333333332 0.041666666666666664"  # 1/240, 5/240, 10/240 s
 FRAME=0.041666666666666664                                             # one frame at 24 frames/s
-echo "started $(date -u +%FT%TZ); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(nproc --all) CPUs; weft $WEFT; quick=$QUICK" > "$OUT/info.txt"
+tour_started
 
 # 1. first steps. variant|combination and overrides
 variants=(
@@ -77,5 +59,5 @@ if [ "$QUICK" != 1 ]; then
     --vary cloths.0.material.youngs_modulus=1e6,1e8,1e11 --combos cloth_ip_direct cloth_root_direct --dt $DTS \
     -o "$OUT/cloth_map" -q
 fi
-echo "finished $(date -u +%FT%TZ)" >> "$OUT/info.txt"
+tour_finished
 /usr/bin/python3 scripts/tour/tour_summary.py integrators "$OUT"

@@ -15,34 +15,16 @@
 # Environment: WEFT (default build/release/apps/weft), TOUR_QUICK=1 (same as --quick),
 # THREADS (OpenMP threads, default 1: times on a shared 2-core machine are steadier with one).
 set -euo pipefail
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-QUICK=${TOUR_QUICK:-0}
-OUT=""
-for a in "$@"; do
-  case "$a" in
-    --quick) QUICK=1 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
-    -*) echo "linear_solvers.sh: unknown option $a (usage: linear_solvers.sh [--quick] [OUT_DIR])" >&2; exit 2 ;;
-    *) OUT=$a ;;
-  esac
-done
-OUT=${OUT:-$ROOT/out/tour/linear-solvers}
-WEFT=${WEFT:-$ROOT/build/release/apps/weft}
-case "$OUT" in /*) ;; *) OUT=$PWD/$OUT ;; esac   # paths as given, from the caller's directory
-case "$WEFT" in /*) ;; *) WEFT=$PWD/$WEFT ;; esac
-cd "$ROOT"
-THREADS=${THREADS:-1}
-[ -x "$WEFT" ] || { echo "linear_solvers.sh: no weft binary at $WEFT (build it with scripts/setup.sh, or set WEFT)" >&2; exit 2; }
-if [ -d "$OUT" ] && [ -n "$(ls -A "$OUT")" ] && ! grep -qs "^started" "$OUT/info.txt"; then
-  echo "linear_solvers.sh: $OUT is not empty and not an output of this script: give a new or empty directory" >&2; exit 2
-fi
-rm -rf "$OUT"  # an earlier output of this script (its info.txt says so)
+# shellcheck source=scripts/tour/common.sh
+source "$(dirname "$0")/common.sh"
+tour_init linear_solvers.sh linear-solvers 16 "$@"
 mkdir -p "$OUT/bench"
+THREADS=${THREADS:-1}
 if [ "$QUICK" = 1 ]; then size_args=(--quick --sizes 20 40); else size_args=(--sizes 30 60 100 150 200 300 --steps 5); fi
-echo "started $(date -u +%FT%TZ); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(nproc --all) CPUs; weft $WEFT; quick=$QUICK; threads=$THREADS" > "$OUT/info.txt"
+tour_started "threads=$THREADS"
 "$WEFT" bench linear --examples pinned --tessellations regular "${size_args[@]}" --solvers diag_pcg sa_ppcg \
   --threads "$THREADS" --out "$OUT/bench" > "$OUT/bench/report.md" 2> "$OUT/bench.log" || {
   rc=$?; cat "$OUT/bench.log" >&2; echo "linear_solvers.sh: weft bench linear exited with $rc" >&2; exit "$rc"; }
 cat "$OUT/bench.log"
-echo "finished $(date -u +%FT%TZ)" >> "$OUT/info.txt"
+tour_finished
 /usr/bin/python3 scripts/tour/tour_summary.py linear "$OUT"

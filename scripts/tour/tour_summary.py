@@ -5,10 +5,8 @@ scripts/weft_plot.py (skipped with a message when Debian's python3-matplotlib is
 
   tour_summary.py integrators OUT   first steps on the hinge (runs.txt) and the stability maps
   tour_summary.py linear OUT        bench/bench_linear.csv of `weft bench linear`
-  tour_summary.py contact OUT [--weft WEFT]
-                                    stability.csv of `weft stability` on the whip; with --weft, every
-                                    stable cell is run again (weft run, OUT/setup.json) to count
-                                    the steps in contact with the wall
+  tour_summary.py contact OUT       stability.csv of `weft stability` on the whip (its contact_steps
+                                    tell a run that met the wall from one that never reached it)
 
 Standard library only. Exit status 0, or 2 when an input is missing or malformed.
 """
@@ -23,19 +21,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 PLOT = os.path.join(HERE, "..", "weft_plot.py")
 
 
-class InputError(Exception):
-    pass
-
-
-def read_csv(path):
-    try:
-        with open(path, newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as e:
-        raise InputError("{}: {}".format(path, e.strerror))
-    if not rows:
-        raise InputError("{}: no rows".format(path))
-    return rows
+sys.path.insert(0, os.path.join(HERE, ".."))
+from weft_plot import InputError, read_csv  # noqa: E402  (the CSV reader and its errors of weft_plot.py)
 
 
 def plot(kind, inp, out, *extra):
@@ -82,7 +69,7 @@ def write(out, md, doc):
 def stability_counts(path):
     """{combo: {"stable": n, "cells": n}} from a stability.csv."""
     counts = {}
-    for r in read_csv(path):
+    for r in read_csv(path, ["combo", "outcome"]):
         c = counts.setdefault(r["combo"], {"stable": 0, "cells": 0})
         c["cells"] += 1
         c["stable"] += r["outcome"] == "stable"
@@ -194,10 +181,7 @@ def fit_exponent(xs, ys):
 
 def linear(out):
     path = os.path.join(out, "bench", "bench_linear.csv")
-    rows = read_csv(path)
-    for c in ("vertices", "solver", "mean_iterations", "mean_setup_s", "mean_solve_s", "mean_total_s", "failures"):
-        if c not in rows[0]:
-            raise InputError("{}: missing column {}".format(path, c))
+    rows = read_csv(path, ["vertices", "solver", "mean_iterations", "mean_setup_s", "mean_solve_s", "mean_total_s", "failures"])
     solvers = {}
     for r in rows:
         s = solvers.setdefault(r["solver"], {"vertices": [], "iterations": [], "setup_s": [], "solve_s": [], "total_s": [],
@@ -246,38 +230,6 @@ def fmt_dt(h):
     return "{:g} ms".format(h * 1e3) if h >= 1e-3 else "{:g} us".format(h * 1e6)
 
 
-def count_contacts(weft, setup, cells, jobs=2):
-    """Re-runs each (combo, speed, dt) cell with `weft run` and returns {cell: steps with a contact}.
-    `weft stability` does not record contacts; this tells a stable run that met the wall from
-    one that never reached it."""
-    from concurrent.futures import ThreadPoolExecutor
-    import shutil
-    import tempfile
-
-    tmp = tempfile.mkdtemp(prefix="weft_tour_contacts_")
-
-    def one(k, cell):
-        combo, speed, dt = cell
-        d = os.path.join(tmp, str(k))
-        args = [weft, "run", setup["scene"], *setup["overrides"], "combo=" + combo,
-                "{}={}".format(setup["vary_key"], speed), "time.dt={}".format(dt), "time.duration={}".format(setup["duration"]),
-                "time.frame_rate=10", "--out", d, "-q"]
-        subprocess.run(args, capture_output=True, text=True, env=dict(os.environ, OMP_NUM_THREADS="1"))
-        n = 0
-        try:
-            with open(os.path.join(d, "stats.jsonl")) as f:
-                n = sum(1 for l in f if l.strip() and json.loads(l).get("contact", {}).get("contacts", 0) > 0)
-        except OSError:
-            n = -1
-        shutil.rmtree(d, ignore_errors=True)
-        return cell, n
-
-    with ThreadPoolExecutor(max_workers=jobs) as ex:
-        out = dict(ex.map(lambda kc: one(*kc), enumerate(cells)))
-    shutil.rmtree(tmp, ignore_errors=True)
-    return out
-
-
 def largest_stable(col):
     """col: sorted [(dt, ok)]; the largest dt with every dt up to it ok (0 if the smallest fails)."""
     best = 0.0
@@ -288,21 +240,15 @@ def largest_stable(col):
     return best
 
 
-def contact(out, weft=None):
+def contact(out):
     path = os.path.join(out, "stability.csv")
-    rows = read_csv(path)
+    rows = read_csv(path, ["combo", "dt", "value", "outcome", "steps", "steps_planned", "max_strain", "wall_seconds",
+                           "contact_steps", "message"])
     combos = list(dict.fromkeys(r["combo"] for r in rows))
     speeds = sorted({r["value"] for r in rows}, key=float)
     dts = sorted({float(r["dt"]) for r in rows})
     outcome = {(r["combo"], r["value"], float(r["dt"])): r["outcome"] for r in rows}
-    contacts = {}
-    if rows and "contact_steps" in rows[0]:  # weft stability records them: no second pass
-        contacts = {(r["combo"], r["value"], float(r["dt"])): int(r["contact_steps"]) for r in rows if r["outcome"] == "stable"}
-    elif weft:
-        with open(os.path.join(out, "setup.json")) as f:
-            setup = json.load(f)
-        stable = [(r["combo"], r["value"], float(r["dt"])) for r in rows if r["outcome"] == "stable"]
-        contacts = count_contacts(weft, setup, stable)
+    contacts = {(r["combo"], r["value"], float(r["dt"])): int(r["contact_steps"]) for r in rows if r["outcome"] == "stable"}
     hstar, hstar_contact, cells, failures = {}, {}, {}, []
     for c in combos:
         hstar[c], hstar_contact[c], cells[c] = {}, {}, {}
@@ -346,8 +292,8 @@ def contact(out, weft=None):
         md.append("")
     md.append("Largest step of the sweep: {}; a ratio at that bound is a lower bound.\n".format(fmt_dt(dts[-1])))
     if contacts:
-        md.append("Steps with a contact in each stable run ({} s simulated; `-` failed run):\n".format(
-            json.load(open(os.path.join(out, "setup.json")))["duration"]))
+        md.append("Steps with a contact in each stable run ({:g} s simulated; `-` failed run):\n".format(
+            int(rows[0]["steps_planned"]) * float(rows[0]["dt"])))
         md.append("| method | speed | " + " | ".join(fmt_dt(dt) for dt in reversed(dts)) + " |")
         md.append("|---|---|" + "---:|" * len(dts))
         for c in combos:
@@ -391,18 +337,11 @@ def contact(out, weft=None):
 
 
 def main(argv):
-    weft = None
-    if len(argv) == 5 and argv[1] == "contact" and argv[3] == "--weft":
-        weft = argv[4]
-        argv = argv[:3]
     if len(argv) != 3 or argv[1] not in ("integrators", "linear", "contact"):
         sys.stderr.write(__doc__)
         return 2
     try:
-        if argv[1] == "contact":
-            contact(argv[2], weft)
-        else:
-            {"integrators": integrators, "linear": linear}[argv[1]](argv[2])
+        {"integrators": integrators, "linear": linear, "contact": contact}[argv[1]](argv[2])
     except InputError as e:
         sys.stderr.write("tour_summary: {}\n".format(e))
         return 2

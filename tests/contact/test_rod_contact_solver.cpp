@@ -21,26 +21,14 @@
 #include "contact/rods/rod_group_solver.hpp"
 #include "policies/registry.hpp"
 #include "policies/rod_presets.hpp"
+#include "tests/support/rod_fixtures.hpp"
 
 using namespace weft;
+using support::as;
+using support::rod_scene;
 using contact::rods::RodContactRows;
 
 namespace {
-
-/// A rod scene: `rods` families, optional obstacles, dt for `duration`, `extra` merged in.
-Scene rod_scene(const std::string& combo, const Json& rods, double dt, double duration, const Json& extra = Json::object()) {
-  Json doc = Json::parse(R"({"output": {"obj": false, "vtp": false}})");
-  doc["combo"] = combo;
-  doc["rods"] = rods;
-  doc["time"] = {{"dt", dt}, {"duration", duration}, {"frame_rate", 1.0 / dt}};
-  doc.merge_patch(extra);
-  return build_scene(doc, ".", "test");
-}
-
-template <class Sim>
-Sim& as(AnySimulator& s) {
-  return dynamic_cast<SimulatorAdapter<Sim>&>(s).simulator();
-}
 
 const char* strategies[] = {"rods_impulse", "rods_linear", "rods_adonis", "rods_staggered"};
 

@@ -15,23 +15,9 @@
 using namespace weft;
 using namespace weft::linear;
 
-namespace {
+using support::with_contacts;
 
-/// The pins of `base` plus contact-like constraints with one and two directions.
-ConstraintSet with_contacts(const ConstraintSet& base, std::uint32_t seed) {
-  ConstraintSet c = base;
-  support::Rng rng(seed);
-  for (int i = 0; i < c.num_vertices(); ++i) {
-    if (c.count(i) != 0) continue;
-    if (i % 5 == 1) {
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-    } else if (i % 7 == 2) {
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-    }
-  }
-  return c;
-}
+namespace {
 
 std::size_t matrix_bytes(const BlockCsr& A) {
   return sizeof(double) * A.values().capacity() + sizeof(int) * (A.col().capacity() + A.row_ptr().capacity() + A.block_rows());

@@ -18,6 +18,8 @@ using namespace weft;
 using linear::DiagPcg;
 using linear::DiagPpcg;
 
+using support::with_contacts;
+
 namespace {
 
 /// The exact inverse of the matrix it is set up from (dense Cholesky): A^-1 for MPCG, Ahat^-1 for PPCG.
@@ -108,23 +110,6 @@ Eigen::VectorXd nullspace_solve(const BlockCsr& A, const Eigen::VectorXd& b, con
   const Eigen::VectorXd z = c.target();
   const Eigen::VectorXd u = (V.transpose() * D * V).llt().solve(V.transpose() * (b - D * z));
   return z + V * u;
-}
-
-/// The pins of `base` plus contact-style constraints on free vertices: one direction on
-/// every 5th vertex, two on (most) every 7th, with non-zero prescribed values.
-ConstraintSet with_contacts(const ConstraintSet& base, std::uint32_t seed) {
-  ConstraintSet c = base;
-  support::Rng rng(seed);
-  for (int i = 0; i < c.num_vertices(); ++i) {
-    if (c.count(i) != 0) continue;
-    if (i % 5 == 1) {
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-    } else if (i % 7 == 2) {
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
-    }
-  }
-  return c;
 }
 
 int count_with(const ConstraintSet& c, int k) {

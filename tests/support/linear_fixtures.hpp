@@ -124,6 +124,23 @@ inline ClothSystem cloth_system(int m, Tessellation t = Tessellation::regular, P
   return sys;
 }
 
+/// The pins of `base` plus contact-style constraints on free vertices: one direction on
+/// every 5th vertex, two on (most) every 7th, with non-zero prescribed values.
+inline ConstraintSet with_contacts(const ConstraintSet& base, std::uint32_t seed) {
+  ConstraintSet c = base;
+  Rng rng(seed);
+  for (int i = 0; i < c.num_vertices(); ++i) {
+    if (c.count(i) != 0) continue;
+    if (i % 5 == 1) {
+      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
+    } else if (i % 7 == 2) {
+      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
+      c.add_direction(i, rng.vec3(), 1e-3 * rng.uniform(-1, 1));
+    }
+  }
+  return c;
+}
+
 /// Ground truth for constrained solves: the dense KKT system [[A C^T][C 0]] [x; lambda] =
 /// [b; C z] (spec 04 §7.1), rows of C the constrained directions n_{i,m}^T, by full-pivot LU.
 inline Eigen::VectorXd dense_kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
