@@ -214,6 +214,12 @@ ContactReport LinearCompliance::end_step(State& out, double dt) {
     gs.max_sweeps = prm_.max_sweeps;
     std::vector<Vector3d> r;
     report_.gauss_seidel = gauss_seidel(op, mu, r, gs);
+    report_.residual = report_.gauss_seidel.residual;
+    if (!report_.gauss_seidel.converged && prm_.solver == ContactSolver::newton) {
+      report_.newton = solve_contacts_newton(op, mu, r, {.tolerance = prm_.tolerance, .max_iterations = prm_.solver_max});
+      report_.residual = report_.newton.residual;
+    }
+    report_.converged = report_.residual <= prm_.tolerance;
 
     // 4. v += D H^T r on the free vertices, x1 = x0 + dt v.
     Eigen::VectorXd dv = Eigen::VectorXd::Zero(3 * n);
@@ -242,14 +248,15 @@ ContactReport LinearCompliance::end_step(State& out, double dt) {
   rep.proximity_contacts = report_.cloth_contacts;
   const GaussSeidelReport& g = report_.gauss_seidel;
   if (m > 0) {
-    rep.gs_sweeps = g.sweeps;
-    rep.gs_residual = g.residual;
-    rep.gs_unconverged = g.converged ? 0 : 1;
+    rep.gs_sweeps = g.sweeps + report_.newton.sweeps;
+    rep.gs_residual = report_.residual;
+    rep.gs_unconverged = report_.converged ? 0 : 1;
+    rep.contact_newton = report_.newton.iterations;
   }
-  if (rep.status == Status::success && m > 0 && !g.converged)
-    rep.message = fmt::format("linear compliance: Gauss-Seidel did not converge: {} contacts, {} sweeps, FB residual {:.3g} m/s "
-                              "(tolerance {:.3g}); the failsafe corrected the rest",
-                              m, g.sweeps, g.residual, prm_.tolerance);
+  if (rep.status == Status::success && m > 0 && !report_.converged)
+    rep.message = fmt::format("linear compliance: the contact solve did not converge: {} contacts, {} sweeps, {} Newton steps, "
+                              "FB residual {:.3g} m/s (tolerance {:.3g}); the failsafe corrected the rest",
+                              m, g.sweeps, report_.newton.iterations, report_.residual, prm_.tolerance);
   rep.response_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() - rep.detection_seconds;
   return rep;

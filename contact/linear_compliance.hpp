@@ -39,7 +39,11 @@
 ///  2. H: three rows per contact, F_k^T sum_j gamma_j (e_j^T (x) I_3) over free stencil
 ///     vertices (obstacle contacts: gamma = 1 on the vertex). W = H A^-1 H^T, formed
 ///     column by column: 3m solves with A (rows of fixed vertices ignored).
-///  3. Gauss-Seidel over the contacts (DenseDelassus) to `tolerance` or `max_sweeps`.
+///  3. Gauss-Seidel over the contacts (DenseDelassus) to `tolerance` or `max_sweeps`; with
+///     `solver = newton`, when the sweeps stop above the tolerance, semismooth Newton on the
+///     contacts' Fischer-Burmeister system (contact_newton.hpp) from there, up to
+///     `solver_max` steps. Plain Gauss-Seidel stalls when hundreds of contacts are coupled
+///     through the dense A^-1 (a sheet resting on another); Newton converges there.
 ///  4. v += A^-1 H^T r (one more solve), x1 = x0 + dt v.
 ///  5. The failsafe: `Impulse::end_step` on the result (obstacle crossings during the step,
 ///     repulsion where the linearisation left a pair closer than h, CCD impulses, impact
@@ -60,11 +64,13 @@
 /// statistics in `last_report()` (and in `message` when it did not converge).
 #include <Eigen/Core>
 
+#include <array>
 #include <memory>
 #include <string_view>
 #include <vector>
 
 #include "contact/contact_gauss_seidel.hpp"
+#include "contact/contact_newton.hpp"
 #include "contact/impulse.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params.hpp"
@@ -75,6 +81,13 @@ namespace weft::contact {
 namespace detection {
 class CollisionDetector;
 }
+
+/// The multi-contact solve of a contact strategy.
+enum class ContactSolver {
+  gauss_seidel,  ///< Gauss-Seidel sweeps up to the sweep limit
+  newton,        ///< Gauss-Seidel, then semismooth Newton to the tolerance (contact_newton.hpp)
+};
+inline constexpr std::array<std::string_view, 2> contact_solver_names = {"gauss_seidel", "newton"};
 
 class LinearCompliance {
  public:
@@ -90,6 +103,8 @@ class LinearCompliance {
     double tolerance = 1e-6;       ///< [m/s] > 0: Gauss-Seidel stops when the max FB residual is below
     int max_sweeps = 200;          ///< Gauss-Seidel sweeps, >= 1
     bool own_factorization = true; ///< factorise A with a sparse LDL^T of its own (else the step's solver)
+    ContactSolver solver = ContactSolver::gauss_seidel;  ///< the multi-contact solve
+    int solver_max = 50;           ///< newton: Newton steps after the sweeps, >= 1
     template <class V>
     void visit(V& v) {
       impulse.visit(v);
@@ -98,10 +113,14 @@ class LinearCompliance {
       v.field("max_sweeps", max_sweeps, {Unit::none, Range::closed(1, 1e6), "Gauss-Seidel sweeps at most"});
       v.field("own_factorization", own_factorization,
               {Unit::none, Range::any(), "factorise the step's matrix A again (sparse LDL^T) for the compliance, else solve with the step's linear solver"});
+      v.choice("solver", solver, contact_solver_names,
+               "multi-contact solve: gauss_seidel (capped at max_sweeps) or newton (Gauss-Seidel, then semismooth Newton to the tolerance)");
+      v.field("solver_max", solver_max, {Unit::none, Range::closed(1, 100000), "newton: Newton steps after the Gauss-Seidel sweeps"});
     }
     static Checker validate(const Params& p) {
       Checker c = Impulse::Params::validate(p.impulse);
       c.require(p.tolerance > 0, "tolerance", p.tolerance, "> 0").require(p.max_sweeps >= 1, "max_sweeps", p.max_sweeps, ">= 1");
+      c.require(p.solver_max >= 1, "solver_max", p.solver_max, ">= 1");
       return c;
     }
   };
@@ -111,6 +130,9 @@ class LinearCompliance {
     int obstacle_contacts = 0;  ///< vertex-obstacle contacts in the GS solve
     int cloth_contacts = 0;     ///< cloth-cloth proximity contacts in the GS solve
     GaussSeidelReport gauss_seidel;
+    NewtonContactResult newton;  ///< `solver = newton` after unconverged sweeps (else zeros)
+    double residual = 0;        ///< [m/s] max FB residual at the end of the contact solve
+    bool converged = true;      ///< residual <= tolerance
     int solves = 0;             ///< solves with the compliance (3m + 1)
     bool compliance = false;    ///< D = A^-1 (false: no system accepted, D = M^-1)
     double solve_penetration = 0;  ///< [m] largest h - phi over the obstacle contacts after the GS response, before the failsafe

@@ -34,53 +34,6 @@ void add_response(const RodContactRows& k, const Vector3d& r, GroupDisplacements
     if (k.rods[side] >= 0) x[k.slot[side]] += k.P[side] * r;
 }
 
-void fischer_burmeister_jacobian(const Vector3d& r, const Vector3d& u, double mu, double s, Matrix3d& A, Matrix3d& B) {
-  A.setZero();
-  B.setZero();
-  if (!(mu > 0)) {  // phi = (a + c - |(a, c)|, s r_t), a = s r_n, c = u_n
-    const double a = s * r[0], c = u[0], h = std::hypot(a, c);
-    const double da = h > 0 ? 1 - a / h : 1 - std::numbers::sqrt2 / 2, dc = h > 0 ? 1 - c / h : 1 - std::numbers::sqrt2 / 2;
-    A(0, 0) = s * da;
-    B(0, 0) = dc;
-    A(1, 1) = A(2, 2) = s;
-    return;
-  }
-  // x = Dx r, y = y(u) with Dy = dy/du (|u_t| differentiated as u_t / |u_t|, 0 at u_t = 0).
-  const Vector2d ut = u.tail<2>();
-  const double nt = ut.norm();
-  const Vector3d x(s * mu * r[0], s * r[1], s * r[2]);
-  const Vector3d y((u[0] + mu * nt) / mu, ut[0], ut[1]);
-  const Matrix3d Dx = Vector3d(s * mu, s, s).asDiagonal();
-  Matrix3d Dy = Matrix3d::Identity();
-  Dy(0, 0) = 1 / mu;
-  if (nt > 0) Dy.block<1, 2>(0, 1) = ut.transpose() / nt;
-  // w = (x o x + y o y)^1/2 by its spectral values wp >= wm >= 0 (as fischer_burmeister_vector).
-  const double z0 = x.squaredNorm() + y.squaredNorm();
-  const Vector2d zb = 2.0 * (x[0] * x.tail<2>() + y[0] * y.tail<2>());
-  const double nz = zb.norm();
-  const double wp = std::sqrt(std::max(0.0, z0 + nz));
-  if (!(wp > 0)) {  // x = y = 0: the element with dw = 0
-    A = Dx;
-    B = Dy;
-    return;
-  }
-  // w o w = x o x + y o y gives L_w dw = L_x dx + L_y dy (L_a: the arrow matrix of a). L_w is
-  // singular where w reaches the cone's boundary (wm = 0): there wm is raised to 1e-10 wp,
-  // which gives a nearby element (the Jacobian of the smoothed function, Chen, Sun & Sun 2003).
-  const double wm = std::max(std::sqrt(std::max(0.0, z0 - nz)), 1e-10 * wp);
-  const Vector2d dir = nz > 0 ? Vector2d(zb / nz) : Vector2d(1, 0);
-  auto arrow = [](double a0, const Vector2d& ab) {
-    Matrix3d L = a0 * Matrix3d::Identity();
-    L.block<1, 2>(0, 1) = ab.transpose();
-    L.block<2, 1>(1, 0) = ab;
-    return L;
-  };
-  const Matrix3d Lw = arrow(0.5 * (wp + wm), 0.5 * (wp - wm) * dir);
-  const Matrix3d Lw_inv = Lw.inverse();
-  A = Dx - Lw_inv * arrow(x[0], x.tail<2>()) * Dx;
-  B = Dy - Lw_inv * arrow(y[0], y.tail<2>()) * Dy;
-}
-
 double contact_error(const std::vector<RodContactRows>& cs, const std::vector<int>& ids, const GroupDisplacements& x) {
   double e = 0;
   for (int id : ids) {
@@ -132,15 +85,9 @@ std::pair<double, double> gauss_seidel_sweep(std::vector<RodContactRows>& cs, co
 
 namespace {
 
-/// A nonzero 3x3 block W_ij of a block row i (j: `col`).
-struct Block {
-  int col;
-  Matrix3d w;
-};
-
 /// The block rows of W = [G_k^T P_l] over the contacts `ids` (index = position in ids):
 /// per rod slot, every pair of contacts on it, over the nonzero rows of G_k only.
-std::vector<std::vector<Block>> delassus(const std::vector<RodContactRows>& cs, const std::vector<int>& ids) {
+DelassusRows delassus(const std::vector<RodContactRows>& cs, const std::vector<int>& ids) {
   const int m = static_cast<int>(ids.size());
   int slots = 0;
   for (int id : ids) slots = std::max({slots, cs[id].slot[0] + 1, cs[id].slot[1] + 1});
@@ -155,7 +102,7 @@ std::vector<std::vector<Block>> delassus(const std::vector<RodContactRows>& cs, 
         if (k.G[side].row(r).squaredNorm() > 0) rows[i][side].push_back(static_cast<int>(r));
     }
   }
-  std::vector<std::vector<Block>> W(m);
+  DelassusRows W(m);
   for (const auto& list : on)
     for (const auto& [i, a] : list)
       for (const auto& [j, b] : list) {
@@ -165,7 +112,7 @@ std::vector<std::vector<Block>> delassus(const std::vector<RodContactRows>& cs, 
       }
   // Two contacts between the same two rods meet on both slots: one block, summed in slot order.
   for (auto& row : W) {
-    std::stable_sort(row.begin(), row.end(), [](const Block& p, const Block& q) { return p.col < q.col; });
+    std::stable_sort(row.begin(), row.end(), [](const DelassusBlock& p, const DelassusBlock& q) { return p.col < q.col; });
     size_t out = 0;
     for (size_t k = 0; k < row.size(); ++k) {
       if (out > 0 && row[out - 1].col == row[k].col) row[out - 1].w += row[k].w;
@@ -180,40 +127,19 @@ std::vector<std::vector<Block>> delassus(const std::vector<RodContactRows>& cs, 
 
 NewtonContactResult solve_contacts_newton(std::vector<RodContactRows>& cs, const std::vector<int>& ids, GroupDisplacements& x,
                                           const NewtonContactOptions& opt) {
-  NewtonContactResult res;
   const int m = static_cast<int>(ids.size());
-  if (m == 0) return res;
-  const std::vector<std::vector<Block>> W = delassus(cs, ids);
-  VectorXd lam(3 * m), u(3 * m), phi(3 * m);
-  // lambda, u (from x) and Phi of the current iterate; returns max_k |Phi_k|.
-  auto refresh = [&] {
-    double e = 0;
+  if (m == 0) return {};
+  const DelassusRows W = delassus(cs, ids);
+  std::vector<double> mu(m), scale(m);
+  for (int i = 0; i < m; ++i) mu[i] = cs[ids[i]].mu, scale[i] = cs[ids[i]].scale;
+  NewtonContactProblem p{.W = &W, .mu = mu, .scale = scale};
+  p.read = [&](VectorXd& lam, VectorXd& u) {  // u from x, so that round-off does not drift
     for (int i = 0; i < m; ++i) {
-      const RodContactRows& k = cs[ids[i]];
-      lam.segment<3>(3 * i) = k.lambda;
-      u.segment<3>(3 * i) = local_displacement(k, x);
-      phi.segment<3>(3 * i) = fischer_burmeister_vector(k.lambda, u.segment<3>(3 * i), k.mu, k.scale);
-      e = std::max(e, phi.segment<3>(3 * i).norm());
+      lam.segment<3>(3 * i) = cs[ids[i]].lambda;
+      u.segment<3>(3 * i) = local_displacement(cs[ids[i]], x);
     }
-    return e;
   };
-  // Phi at (l, w) without touching x; returns 1/2 |Phi|^2.
-  auto merit_at = [&](const VectorXd& l, const VectorXd& w) {
-    double f2 = 0;
-    for (int i = 0; i < m; ++i) {
-      const RodContactRows& k = cs[ids[i]];
-      f2 += fischer_burmeister_vector(l.segment<3>(3 * i), w.segment<3>(3 * i), k.mu, k.scale).squaredNorm();
-    }
-    return 0.5 * f2;
-  };
-  auto times_W = [&](const VectorXd& v) {
-    VectorXd out = VectorXd::Zero(3 * m);
-    for (int i = 0; i < m; ++i)
-      for (const Block& b : W[i]) out.segment<3>(3 * i) += b.w * v.segment<3>(3 * b.col);
-    return out;
-  };
-  // lambda += step, x += P step.
-  auto apply = [&](const VectorXd& step) {
+  p.apply = [&](const VectorXd& step) {  // lambda += step, x += P step
     for (int i = 0; i < m; ++i) {
       const Vector3d s = step.segment<3>(3 * i);
       if ((s.array() == 0).all()) continue;
@@ -222,208 +148,10 @@ NewtonContactResult solve_contacts_newton(std::vector<RodContactRows>& cs, const
       k.lambda += s;
     }
   };
-
-  double err = refresh();
-  double best = err;
-  VectorXd best_lam = lam;
-  int stalls = 0;
-  std::vector<int> active, pos(m);
-  std::vector<Matrix3d> A(m), B(m);
-  while (err > opt.tolerance && res.iterations < opt.max_iterations) {
-    ++res.iterations;
-    // 1. The contacts in the system and their local derivatives.
-    active.clear();
-    for (int i = 0; i < m; ++i) {
-      pos[i] = -1;
-      const RodContactRows& k = cs[ids[i]];
-      if ((k.lambda.array() == 0).all() && u[3 * i] > 0) continue;  // take-off: stays at lambda = 0
-      pos[i] = static_cast<int>(active.size());
-      active.push_back(i);
-      fischer_burmeister_jacobian(k.lambda, u.segment<3>(3 * i), k.mu, k.scale, A[i], B[i]);
-    }
-    const int n = 3 * static_cast<int>(active.size());
-    if (n == 0) break;
-    // 2. J = A + B W on them, and the regularised Jr = A + B (W + rho S).
-    double U = std::numeric_limits<double>::min();
-    for (int i : active) U = std::max({U, u.segment<3>(3 * i).norm(), cs[ids[i]].scale * lam.segment<3>(3 * i).norm()});
-    const double rho = std::clamp(err / U, 1e-10, 1e-3);
-    std::vector<Eigen::Triplet<double>> trip, trip_r;
-    VectorXd f(n);
-    for (int a = 0; a < static_cast<int>(active.size()); ++a) {
-      const int i = active[a];
-      f.segment<3>(3 * a) = phi.segment<3>(3 * i);
-      for (const Block& b : W[i]) {
-        if (pos[b.col] < 0) continue;
-        Matrix3d J = B[i] * b.w;
-        if (b.col == i) J += A[i];
-        Matrix3d Jr = J;
-        if (b.col == i) Jr += rho * cs[ids[i]].scale * B[i];
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) {
-            trip.emplace_back(3 * a + r, 3 * pos[b.col] + c, J(r, c));
-            trip_r.emplace_back(3 * a + r, 3 * pos[b.col] + c, Jr(r, c));
-          }
-      }
-    }
-    Eigen::SparseMatrix<double> J(n, n), Jr(n, n);
-    J.setFromTriplets(trip.begin(), trip.end());
-    Jr.setFromTriplets(trip_r.begin(), trip_r.end());
-    const bool dense = n <= opt.dense_limit;
-    MatrixXd Jd, Jrd;
-    if (dense) Jd = MatrixXd(J), Jrd = MatrixXd(Jr);
-    const double merit = 0.5 * phi.squaredNorm();
-    // 3. The step along delta (on the active contacts) that decreases the merit by Armijo's
-    // rule, and that merit; an empty step when there is none.
-    struct Trial {
-      VectorXd step;
-      double merit = std::numeric_limits<double>::infinity();
-    };
-    auto search = [&](const VectorXd& delta) {
-      Trial best_trial;
-      if (delta.size() != n || !delta.allFinite()) return best_trial;
-      const VectorXd Jdelta = dense ? VectorXd(Jd * delta) : VectorXd(J * delta);
-      const double slope = f.dot(Jdelta);
-      if (!(slope < 0)) return best_trial;
-      VectorXd step = VectorXd::Zero(3 * m);
-      for (int a = 0; a < static_cast<int>(active.size()); ++a) step.segment<3>(3 * active[a]) = delta.segment<3>(3 * a);
-      const VectorXd Wstep = times_W(step);
-      for (double t = 1; t > 1e-10; t *= 0.5) {
-        const double mt = merit_at(lam + t * step, u + t * Wstep);
-        if (mt <= merit + 1e-4 * t * slope) {
-          best_trial.step = t * step;
-          best_trial.merit = mt;
-          break;
-        }
-      }
-      return best_trial;
-    };
-    // Levenberg-Marquardt direction: (J^T J + nu I) delta = -J^T f.
-    const VectorXd g = dense ? VectorXd(Jd.transpose() * f) : VectorXd(J.transpose() * f);
-    MatrixXd N;
-    Eigen::SparseMatrix<double> Ns;
-    double d0 = std::numeric_limits<double>::min();
-    if (dense) {
-      N = Jd.transpose() * Jd;
-      d0 = std::max(d0, N.diagonal().maxCoeff());
-    } else {
-      Ns = J.transpose() * J;
-      for (int c = 0; c < n; ++c) d0 = std::max(d0, Ns.coeff(c, c));
-    }
-    auto levenberg_marquardt = [&](double nu) -> VectorXd {
-      if (dense) {
-        MatrixXd Nn = N;
-        Nn.diagonal().array() += nu;
-        return Nn.ldlt().solve(-g);
-      }
-      Eigen::SparseMatrix<double> I(n, n);
-      I.setIdentity();
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Ns + nu * I);
-      if (ldlt.info() != Eigen::Success) return VectorXd();
-      return ldlt.solve(-g);
-    };
-    // The Newton step; with redundant contacts (J singular) it is large along the null
-    // space and damped hard, so a lightly regularised Levenberg-Marquardt step competes
-    // with it and the lower merit wins.
-    // The stick step: every pressed contact (lambda_n > 0) sticks, u_k + (W delta)_k = 0 on
-    // them (the normal row only without friction), the others keep their multipliers. A linear
-    // system, exact when that regime is the solution's; W_SS + 1e-10 s I keeps the split of
-    // exactly redundant contacts (minimum change along W's null space).
-    auto stick_step = [&]() -> Trial {
-      Trial out;
-      std::vector<int> idx;  // entries of lambda in the system
-      for (int i : active) {
-        const RodContactRows& k = cs[ids[i]];
-        if (!(k.lambda[0] > 0)) continue;
-        for (int c = 0; c < (k.mu > 0 ? 3 : 1); ++c) idx.push_back(3 * i + c);
-      }
-      const int ns = static_cast<int>(idx.size());
-      if (ns == 0) return out;
-      std::vector<int> at(3 * m, -1);
-      for (int a = 0; a < ns; ++a) at[idx[a]] = a;
-      std::vector<Eigen::Triplet<double>> tw;
-      VectorXd rhs(ns);
-      for (int a = 0; a < ns; ++a) {
-        const int i = idx[a] / 3, r = idx[a] % 3;
-        rhs[a] = -u[idx[a]];
-        tw.emplace_back(a, a, 1e-10 * cs[ids[i]].scale);
-        for (const Block& b : W[i])
-          for (int c = 0; c < 3; ++c)
-            if (at[3 * b.col + c] >= 0) tw.emplace_back(a, at[3 * b.col + c], b.w(r, c));
-      }
-      Eigen::SparseMatrix<double> Ws(ns, ns);
-      Ws.setFromTriplets(tw.begin(), tw.end());
-      VectorXd sol;
-      if (ns <= opt.dense_limit) {
-        sol = MatrixXd(Ws).ldlt().solve(rhs);
-      } else {
-        Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Ws);
-        if (ldlt.info() != Eigen::Success) return out;
-        sol = ldlt.solve(rhs);
-      }
-      if (!sol.allFinite()) return out;
-      VectorXd step = VectorXd::Zero(3 * m);
-      for (int a = 0; a < ns; ++a) step[idx[a]] = sol[a];
-      const double mt = merit_at(lam + step, u + times_W(step));
-      if (mt < merit) out.step = std::move(step), out.merit = mt;
-      return out;
-    };
-    Trial trial;
-    {
-      VectorXd delta;
-      if (dense) {
-        const Eigen::PartialPivLU<MatrixXd> lu(Jrd);
-        delta = lu.solve(-f);
-        if (!((Jrd * delta + f).norm() <= 1e-6 * f.norm())) delta.resize(0);
-      } else {
-        Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
-        lu.compute(Jr);
-        if (lu.info() == Eigen::Success) {
-          delta = lu.solve(-f);
-          if (!((Jr * delta + f).norm() <= 1e-6 * f.norm())) delta.resize(0);
-        }
-      }
-      trial = search(delta);
-      if (!(trial.merit <= 0.25 * merit)) {  // not a full Newton decrease: try the stick and regularised steps too
-        Trial st = stick_step();
-        if (st.merit < trial.merit) {
-          trial = std::move(st);
-          ++res.stick_steps;
-        }
-        if (!(trial.merit <= 0.25 * merit)) {
-          Trial lm = search(levenberg_marquardt(1e-10 * d0));
-          if (lm.merit < trial.merit) {
-            trial = std::move(lm);
-            ++res.fallbacks;
-          }
-        }
-      }
-    }
-    bool moved = trial.step.size() > 0;
-    if (!moved) {  // Levenberg-Marquardt with nu raised until the merit decreases
-      ++res.fallbacks;
-      for (double nu = 1e-8 * d0; !moved && nu <= 1e2 * d0; nu *= 100) {
-        trial = search(levenberg_marquardt(nu));
-        moved = trial.step.size() > 0;
-      }
-    }
-    if (moved) apply(trial.step);
-    if (!moved) {  // Gauss-Seidel: slow but always admissible
-      for (int s = 0; s < opt.fallback_sweeps; ++s) gauss_seidel_sweep(cs, ids, x, SweepMode::coulomb);
-      res.sweeps += opt.fallback_sweeps;
-    }
-    const double before = best;
-    err = refresh();
-    if (err < best) best = err, best_lam = lam;
-    // Fallbacks that do not improve on the best iterate three times in a row: give up.
-    stalls = moved || best < (1 - 1e-3) * before ? 0 : stalls + 1;
-    if (stalls >= 3) break;
-  }
-  if (err > best) {  // back to the best iterate
-    apply(best_lam - lam);
-    err = refresh();
-  }
-  res.residual = err;
-  return res;
+  p.sweep = [&](int sweeps) {
+    for (int s = 0; s < sweeps; ++s) gauss_seidel_sweep(cs, ids, x, SweepMode::coulomb);
+  };
+  return contact::solve_contacts_newton(p, opt);
 }
 
 }  // namespace weft::contact::rods

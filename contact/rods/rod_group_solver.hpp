@@ -13,39 +13,21 @@
 /// (contact/coulomb.hpp: De Saxce's change of variable, then the Fischer-Burmeister
 /// function of the second-order cone, in the units of u; |Phi_k| is the contact's residual).
 ///
-/// Newton (`solve_contacts_newton`). From the current multipliers (Gauss-Seidel's):
-///  1. the local derivatives A_k = dPhi_k/dlambda_k and B_k = dPhi_k/du_k, exact
-///     (`fischer_burmeister_jacobian`, nudged off the kinks of the cone where it is not
-///     defined); contacts with lambda_k = 0 and u_{k,n} > 0 (take-off) keep lambda_k = 0 and
-///     leave the system;
-///  2. the Newton step on the others with the regularised Jacobian A + B (W + rho S), S the
-///     contacts' scales and rho = clamp(residual / |u|, 1e-10, 1e-3) shrinking with the
-///     residual (dense LU up to `dense_limit` unknowns, sparse LU beyond; W assembled once per
-///     solve);
-///  3. Armijo backtracking on the merit 1/2 |Phi|^2 of the unregularised problem; the step is
-///     applied to x through the P_k, and u recomputed from x;
-///  4. when that step does not divide the merit by 4 (redundant contacts make J singular and
-///     the load split between them non-unique), two steps compete and the lowest merit wins:
-///     the stick step (every pressed contact sticks: one linear system u_k + (W delta)_k = 0
-///     with a 1e-10 s diagonal, which keeps the split of exact duplicates) and a lightly
-///     regularised Levenberg-Marquardt step (J^T J + nu I) delta = -J^T Phi; when none
-///     decreases the merit, nu is raised, then `fallback_sweeps` Gauss-Seidel sweeps.
+/// Newton (`solve_contacts_newton`): contact/contact_newton.hpp's semismooth Newton on this
+/// group, with W assembled once per solve (blocks only where contacts share a rod), u read
+/// from x (x kept equal to d_u + sum_k P_k lambda_k) and Gauss-Seidel sweeps of this file
+/// as the last fallback.
 /// Known limit: two near-duplicate contacts on a sliding rod (the same crossing found from
 /// two edges) stall it near 1e-9 m; the detection merges them (rod_detection.hpp,
 /// `merge_fraction`, `merge_angle`), with which the V-06/V-07, V-13 and V-14 tests pass.
 /// With merging off (merge_fraction = 0) the stall comes back.
-/// It stops when max_k |Phi_k| <= tolerance, after `max_iterations` steps, or when the
-/// fallbacks stop making progress; it returns the best iterate (smallest max_k |Phi_k|),
-/// so it is never worse than the Gauss-Seidel iterate it starts from. Semismooth Newton on
-/// the SOC Fischer-Burmeister function: Fukushima, Luo & Tseng 2002; on the frictional
-/// contact of rods with a merit line search: Bertails-Descoubes et al. 2011 (for the
-/// Alart-Curnier function).
 #include <Eigen/Core>
 
 #include <array>
 #include <utility>
 #include <vector>
 
+#include "contact/contact_newton.hpp"
 #include "contact/rods/rod_detection.hpp"
 
 namespace weft::contact::rods {
@@ -70,10 +52,10 @@ using GroupDisplacements = std::vector<Eigen::VectorXd>;
 Eigen::Vector3d local_displacement(const RodContactRows& k, const GroupDisplacements& x);
 /// x += P_k r.
 void add_response(const RodContactRows& k, const Eigen::Vector3d& r, GroupDisplacements& x);
-/// An element of the generalised Jacobian of phi_FB(r, u) (contact::fischer_burmeister_vector):
-/// A = dphi/dr and B = dphi/du, exact where phi is differentiable (file comment).
-void fischer_burmeister_jacobian(const Eigen::Vector3d& r, const Eigen::Vector3d& u, double mu, double scale, Eigen::Matrix3d& A,
-                                 Eigen::Matrix3d& B);
+using contact::fischer_burmeister_jacobian;
+using contact::NewtonContactOptions;
+using contact::NewtonContactResult;
+
 /// max over the contacts `ids` of |phi_FB(lambda_k, G_k^T x + b_k)|, in the units of u.
 double contact_error(const std::vector<RodContactRows>& cs, const std::vector<int>& ids, const GroupDisplacements& x);
 
@@ -90,24 +72,7 @@ enum class SweepMode {
 std::pair<double, double> gauss_seidel_sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, GroupDisplacements& x,
                                              SweepMode mode);
 
-/// Options of the Newton contact solver (the rod strategies fill them from their params).
-struct NewtonContactOptions {
-  double tolerance = 1e-8;   ///< [units of u] max_k |Phi_k| to reach
-  int max_iterations = 50;   ///< Newton and fallback steps
-  int fallback_sweeps = 10;  ///< Gauss-Seidel sweeps of the last fallback
-  int dense_limit = 1500;    ///< dense LU up to this many unknowns (3 per contact left in the system), sparse LU beyond
-};
-
-/// What a Newton contact solve did.
-struct NewtonContactResult {
-  int iterations = 0;  ///< steps taken (Newton and fallbacks)
-  int fallbacks = 0;   ///< of which Levenberg-Marquardt or Gauss-Seidel
-  int stick_steps = 0; ///< of which stick steps (the pressed contacts' linear stick system)
-  int sweeps = 0;      ///< Gauss-Seidel sweeps of the fallbacks
-  double residual = 0; ///< max_k |Phi_k| at exit (the best iterate)
-};
-
-/// Semismooth Newton on the group's Fischer-Burmeister system (file comment), from the
+/// Semismooth Newton on the group's Fischer-Burmeister system (contact_newton.hpp), from the
 /// multipliers in `cs` and the consistent displacements x; both are updated.
 NewtonContactResult solve_contacts_newton(std::vector<RodContactRows>& cs, const std::vector<int>& ids, GroupDisplacements& x,
                                           const NewtonContactOptions& opt);
