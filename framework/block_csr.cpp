@@ -39,7 +39,7 @@ void BlockCsr::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   WEFT_ASSERT(x.size() == rows(), "size mismatch {} vs {}", x.size(), rows());
   y.resize(rows());
   const int n = block_rows();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= 1024)
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
     for (int k = row_ptr_[i]; k < row_ptr_[i + 1]; ++k) acc.noalias() += block(k) * x.segment<3>(3 * col_[k]);
@@ -184,15 +184,14 @@ void ElementBuffer::gather_into(BlockCsr& out) const {
   WEFT_ASSERT(nb == m.num_blocks, "{}", "matrix does not have the plan's pattern");
   const double* src = data_.data();
   double* dst = out.values().data();
-#pragma omp parallel for schedule(static)
-  for (int b = 0; b < nb; ++b) {
+  parallel_range(nb, [&](int b) {
     double acc[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     for (size_t s = m.src_ptr[b]; s < m.src_ptr[b + 1]; ++s) {
       const double* blk = src + 9 * m.src[s];
       for (int q = 0; q < 9; ++q) acc[q] += blk[q];
     }
     for (int q = 0; q < 9; ++q) dst[9 * static_cast<size_t>(b) + q] = acc[q];
-  }
+  });
 }
 
 Eigen::Map<Block3> ElementBuffer::block(int group, int e, int a, int b) {
@@ -252,7 +251,7 @@ void AssemblyPlan::finalize(int num_vertices) {
     const int k = stencil_[g];
     const size_t ne = ids_[g].size() / k;
     int* dst = maps->destination.data() + maps->first_block[g];
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (ne >= 1024)
     for (size_t e = 0; e < ne; ++e)
       for (int a = 0; a < k; ++a)
         for (int b = 0; b < k; ++b) dst[e * k * k + a * k + b] = pattern_.find(ids_[g][e * k + a], ids_[g][e * k + b]);

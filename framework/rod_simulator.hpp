@@ -141,7 +141,7 @@ class RodSimulator {
     std::vector<NewtonReport> del(R);
     {
       ScopedTimer timer(rep.times, Stage::energy);  // the unconstrained solves (energy, Hessian and banded solves)
-#pragma omp parallel for schedule(dynamic, 4)
+#pragma omp parallel for schedule(dynamic, 4) if (R > 1)
       for (int r = 0; r < R; ++r) {
         Body& b = bodies_[r];
         held_targets(r, t1);
@@ -171,7 +171,7 @@ class RodSimulator {
         return rep.fail("contact response", Status::numerical_issue,
                     fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r), centre_.t);
     }
-#pragma omp parallel for schedule(dynamic, 4) reduction(max : stretch)
+#pragma omp parallel for schedule(dynamic, 4) reduction(max : stretch) if (R > 1)
     for (int r = 0; r < R; ++r) {
       Body& b = bodies_[r];
       b.v = b.d / dt_;

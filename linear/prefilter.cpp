@@ -13,7 +13,7 @@ void prefilter_matrix(const BlockCsr& A, const ConstraintSet& c, BlockCsr& Ahat)
   const int n = A.block_rows();
   const auto& rp = A.row_ptr();
   const auto& col = A.col();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= 2048)
   for (int i = 0; i < n; ++i) {
     const bool ci = c.count(i) > 0;
     const Block3 Si = ci ? c.filter(i) : Block3::Identity();

@@ -265,7 +265,7 @@ void StvkMembrane<Material>::set_rest_time(double t) {
   if (!changed) return;
   const int n = static_cast<int>(animated_faces_.size());
   int failed = -1;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= 256)
   for (int k = 0; k < n; ++k) {
     const AnimatedFace& a = animated_faces_[k];
     const double gc = g[face_cloth_[a.face]];

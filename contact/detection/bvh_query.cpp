@@ -49,7 +49,9 @@ class Traversal {
     }
     const int m = static_cast<int>(frontier.size());
     std::vector<std::vector<PrimitivePair>> out(m);
-#pragma omp parallel for schedule(dynamic, 1) if (m > 1)
+    // A team costs more than a small traversal (a rod of 50 edges against a wall).
+    const bool large = a_.nodes().size() + b_.nodes().size() >= 2048;
+#pragma omp parallel for schedule(dynamic, 1) if (m > 1 && large)
     for (int i = 0; i < m; ++i) traverse(frontier[i], out[i]);
     return sorted(out, a_.size());
   }

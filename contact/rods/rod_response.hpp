@@ -200,7 +200,7 @@ class RodResponse {
       std::vector<std::vector<int>> group_rods;
       const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods, prm_.groups);
       stats_.assign(groups.size(), {});
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (groups.size() > 1)
       for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group(sys, groups[g], group_rods[g]);
       rep.contact_groups = static_cast<int>(groups.size());
       rep.largest_group = 0;

@@ -14,7 +14,7 @@ int count_rod_overlaps(const std::vector<Eigen::Vector3d>& x, const std::vector<
               "inconsistent rods: {} vertices, {} offsets, {} radii", x.size(), first.size(), radius.size());
   const int R = static_cast<int>(radius.size());
   int count = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : count)
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : count) if (R > 1)
   for (int ra = 0; ra < R; ++ra)
     for (int i = first[ra]; i + 1 < first[ra + 1]; ++i)
       for (int rb = ra; rb < R; ++rb)
