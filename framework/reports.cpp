@@ -115,6 +115,7 @@ Json to_json(const ContactReport& r) {
   put("max_outer_iterations", r.max_outer_iterations);
   put("relinearized", r.relinearized);
   put("capped_groups", r.capped_groups);
+  put("stretched_groups", r.stretched_groups);
   put("contact_newton", r.contact_newton);
   put("contact_fallbacks", r.contact_fallbacks);
   put("max_stretch", r.max_stretch);

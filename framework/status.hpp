@@ -111,6 +111,7 @@ struct ContactReport {
   int max_outer_iterations = 0;  ///< constrained Newton iterations of the group that needed most
   int relinearized = 0;        ///< rod Hessians re-evaluated and refactored after the first iteration, summed
   int capped_groups = 0;       ///< groups that stopped at the Newton cap above the stretch tolerance
+  int stretched_groups = 0;    ///< groups whose constrained Newton converged (the iterate stopped moving) with a rod above the stretch tolerance
   double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
   int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again)
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations
@@ -151,6 +152,7 @@ struct ContactReport {
     max_outer_iterations = std::max(max_outer_iterations, end.max_outer_iterations);
     relinearized += end.relinearized;
     capped_groups += end.capped_groups;
+    stretched_groups += end.stretched_groups;
     max_stretch = end.max_stretch;
     redetections += end.redetections;
     contact_newton += end.contact_newton;

@@ -29,7 +29,9 @@
 ///          largest Fischer-Burmeister residual is below `contact_tol` or `gs_max` sweeps
 ///          `solver = newton`: then semismooth Newton on the group's Fischer-Burmeister system
 ///            (rod_group_solver.hpp) until the residual is below `contact_tol`, or the step fails
-///          d = x;  stop unless the strategy re-linearises and some rod is over-stretched
+///          d = x;  stop unless the strategy re-linearises and some rod is over-stretched;
+///            stop as well when d moved by at most `contact_tol` (converged with a rod still
+///            over-stretched: `stretched_groups`) or after `newton_max` iterations (`capped_groups`)
 ///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
 /// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
@@ -120,6 +122,7 @@ struct GroupStats {
   int newton = 0, fallbacks = 0;  ///< Newton contact solver: steps, and steps taken by its fallbacks
   double residual = 0;
   bool unconverged = false, capped = false;
+  bool stretched = false;  ///< converged (the iterate stopped moving) with a rod above stretch_tol
   Status status = Status::success;
   std::string message;
 };
@@ -208,6 +211,7 @@ class RodResponse {
       rep.gs_residual = 0;
       rep.gs_unconverged = 0;
       rep.capped_groups = 0;
+      rep.stretched_groups = 0;
       for (const GroupStats& st : stats_) {
         rep.largest_group = std::max(rep.largest_group, st.contacts);
         rep.outer_iterations += st.outer;
@@ -217,6 +221,7 @@ class RodResponse {
         rep.gs_unconverged += st.unconverged;
         rep.relinearized += st.relinearized;
         rep.capped_groups += st.capped;
+        rep.stretched_groups += st.stretched;
         rep.contact_newton += st.newton;
         rep.contact_fallbacks += st.fallbacks;
         if (st.status != Status::success && rep.status == Status::success) {
@@ -393,13 +398,26 @@ class RodResponse {
             ids.size(), rods.size(), rods.front(), st.residual, prm_.contact_tol, st.newton, st.fallbacks, outer);
         return st;
       }
-      for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
+      double change = 0;  // largest move of a vertex coordinate in this iteration
+      for (size_t i = 0; i < rods.size(); ++i) {
+        auto& d = sys.body(rods[i]).d;
+        change = std::max(change, (xs[i] - d).cwiseAbs().maxCoeff());
+        d = xs[i];
+      }
       if constexpr (!relinearizes) break;
       else {
         std::vector<int> over;
         for (int r : rods)
           if (sys.stretch(r, sys.body(r).d) > prm_.stretch_tol) over.push_back(r);
         if (over.empty()) break;
+        // The iterate stopped moving: the constrained Newton iteration has converged, and the
+        // step's solution itself stretches a rod beyond the tolerance (e.g. a scripted root
+        // pulling a rod whose tip the wall holds). Re-linearising again changes nothing; the
+        // step is reported (`stretched_groups`), as a capped one is.
+        if (change <= prm_.contact_tol) {
+          st.stretched = true;
+          break;
+        }
         if constexpr (S == RodStrategy::staggered_projections) over = rods;  // global re-linearisation of the group
         if (outer >= prm_.newton_max) {
           st.capped = true;
