@@ -11,6 +11,7 @@
 #   D      the prefiltering ablation of thesis Fig. 11.8 on dropHorizontal (Diag-PCG,
 #          Diag+PPCG, SA+MPCG, SA+PPCG)
 #   C      irregular tessellation, pinned and dropHorizontal, 961 .. 90,601 vertices
+#   C2     irregular tessellation, drooping, re-entrant and dropVertical, 961 .. 90,601 vertices
 # Averages cover at most 8 steps (2 at >= 250k vertices): the first steps, not the thesis'
 # 10-25 frames, to fit the session. Needs the back ends:
 #   cmake --preset backends && cmake --build --preset backends --target weft
@@ -40,3 +41,6 @@ run C-irregular --examples pinned dropHorizontal --tessellations irregular --siz
 run A2-regular-small --tessellations regular --sizes 30 60 100 150 --steps 8 --solvers cholmod diag_pcg sa_ppcg
 run A3-regular-40k --tessellations regular --sizes 200 --steps 8 --solvers cholmod diag_pcg sa_ppcg
 run B1-pinned-1M-direct --examples pinned --tessellations regular --sizes 1000 --steps 1 --solvers cholmod sa_ppcg
+# The irregular columns of the other three examples, added later, on one thread: under the
+# load of that session two threads waited at barriers for a descheduled partner (C2-irregular.md).
+run C2-irregular --examples drooping re-entrant dropVertical --tessellations irregular --sizes 30 100 200 300 --steps 8 --solvers cholmod diag_pcg sa_ppcg --threads 1
