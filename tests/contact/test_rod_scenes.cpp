@@ -7,6 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "contact/rods/rod_verify.hpp"
 #include "policies/rod_presets.hpp"
@@ -210,6 +213,19 @@ TEST_SUITE("rods") {
   }
 }
 
+namespace {
+/// scenes/whip.json with its wall 14 cm nearer the axis (edge at 7 cm: the rod strikes it at
+/// every step size, bench/results/rods/figure_9_2_near_wall/), plus `overrides`.
+std::unique_ptr<AnySimulator> near_wall_whip(std::vector<std::string> overrides) {
+  const char* root = std::getenv("WEFT_SOURCE_DIR");
+  REQUIRE(root);
+  for (const char* o : {"rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]", "gravity=[0,0,0]",
+                        "obstacles.0.center=[0.17,0,0]"})
+    overrides.insert(overrides.begin(), o);
+  return make_simulator(load_scene(std::string(root) + "/scenes/whip.json", overrides));
+}
+}  // namespace
+
 TEST_SUITE("rods") {
   TEST_CASE("rods: a whip against a near wall completes - a flat Newton mode stops at the round-off of E_inc") {
     // scenes/whip.json with its wall 14 cm nearer the axis (edge at 7 cm, so the rod strikes
@@ -217,12 +233,7 @@ TEST_SUITE("rods") {
     // stayed long while the residual sat at 1.9e-17 N (a nearly singular Hessian); the step
     // failed after 50 iterations until a Newton decrement below the round-off of E_inc
     // counted as converged (integrators/rod_backward_euler.hpp).
-    const char* root = std::getenv("WEFT_SOURCE_DIR");
-    REQUIRE(root);
-    auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip.json",
-                                         {"rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]",
-                                          "gravity=[0,0,0]", "obstacles.0.center=[0.17,0,0]", "rods.0.motion.angular_velocity=[0,0,20]",
-                                          "time.dt=0.005", "time.frame_rate=200", "time.duration=0.4"}));
+    auto sim = near_wall_whip({"rods.0.motion.angular_velocity=[0,0,20]", "time.dt=0.005", "time.frame_rate=200", "time.duration=0.4"});
     int contact_steps = 0, newton_max = 0;
     for (int k = 0; k < 80; ++k) {
       CAPTURE(k);
@@ -244,12 +255,8 @@ TEST_SUITE("rods") {
     // the rod by 19-49 %. The constrained Newton iterate stops moving after 6-9 iterations
     // (moves of 1e-9 m, then 1e-12 m); re-linearising more changed nothing, and before this
     // criterion every such step ran to newton_max (100) and ended `capped`.
-    const char* root = std::getenv("WEFT_SOURCE_DIR");
-    REQUIRE(root);
-    auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip.json",
-                                         {"rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]",
-                                          "gravity=[0,0,0]", "obstacles.0.center=[0.17,0,0]", "rods.0.motion.angular_velocity=[0,0,10]",
-                                          "combo=rods_adonis", "time.dt=0.02", "time.frame_rate=50", "time.duration=0.8"}));
+    auto sim = near_wall_whip({"rods.0.motion.angular_velocity=[0,0,10]", "combo=rods_adonis", "time.dt=0.02", "time.frame_rate=50",
+                               "time.duration=0.8"});
     int stretched = 0, capped = 0, outer_max = 0, converged_in_tol = 0;
     double stretch_max = 0;
     for (int k = 0; k < 40; ++k) {
