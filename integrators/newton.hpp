@@ -72,7 +72,7 @@ struct NewtonParams {
   int max_iterations = 100;           ///< Newton iterations per step
   double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
   double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
-  double step_tolerance = 0;          ///< [m] also stop when an accepted step moves no vertex farther (0: off)
+  double step_tolerance = 0;          ///< [m] also stop when the full Newton step (before the line search) moves no vertex farther (0: off)
   double decrease_tolerance = 0;      ///< also stop when an iteration decreases the merit by less than
                                       ///< this fraction of the decrease so far (0: off)
   HessianChoice hessian = HessianChoice::adaptive;
@@ -91,7 +91,7 @@ struct NewtonParams {
     v.field("length_tolerance", length_tolerance,
             {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
     v.field("step_tolerance", step_tolerance,
-            {Unit::length, Range::ge(0), "also stop when an accepted step moves no vertex farther than this (0: off)"});
+            {Unit::length, Range::ge(0), "also stop when the full Newton step (before the line search) moves no vertex farther than this (0: off)"});
     v.field("decrease_tolerance", decrease_tolerance,
             {Unit::none, Range::closed(0, 1), "also stop when an iteration decreases the merit by less than this fraction of the decrease so far (0: off)"});
     v.choice("hessian", hessian, hessian_choice_names,
