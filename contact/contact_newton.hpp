@@ -38,13 +38,23 @@
 /// merit line search: Bertails-Descoubes et al. 2011 (for the Alart-Curnier function).
 #include <Eigen/Core>
 
+#include <array>
 #include <functional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "contact/contact_gauss_seidel.hpp"
 
 namespace weft::contact {
+
+/// The multi-contact solve of a contact strategy (rods and cloth's linear compliance): the
+/// scene key `contact.solver`.
+enum class ContactSolver {
+  gauss_seidel,  ///< Gauss-Seidel sweeps up to the sweep limit (the thesis): may stop above the tolerance
+  newton,        ///< Gauss-Seidel, then semismooth Newton to the tolerance (this file)
+};
+inline constexpr std::array<std::string_view, 2> contact_solver_names = {"gauss_seidel", "newton"};
 
 /// A nonzero 3x3 block W_ij of block row i (j: `col`).
 struct DelassusBlock {

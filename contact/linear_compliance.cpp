@@ -252,6 +252,7 @@ ContactReport LinearCompliance::end_step(State& out, double dt) {
     rep.gs_residual = report_.residual;
     rep.gs_unconverged = report_.converged ? 0 : 1;
     rep.contact_newton = report_.newton.iterations;
+    rep.contact_fallbacks = report_.newton.fallbacks;
   }
   if (rep.status == Status::success && m > 0 && !report_.converged)
     rep.message = fmt::format("linear compliance: the contact solve did not converge: {} contacts, {} sweeps, {} Newton steps, "

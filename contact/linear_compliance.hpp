@@ -64,7 +64,6 @@
 /// statistics in `last_report()` (and in `message` when it did not converge).
 #include <Eigen/Core>
 
-#include <array>
 #include <memory>
 #include <string_view>
 #include <vector>
@@ -81,13 +80,6 @@ namespace weft::contact {
 namespace detection {
 class CollisionDetector;
 }
-
-/// The multi-contact solve of a contact strategy.
-enum class ContactSolver {
-  gauss_seidel,  ///< Gauss-Seidel sweeps up to the sweep limit
-  newton,        ///< Gauss-Seidel, then semismooth Newton to the tolerance (contact_newton.hpp)
-};
-inline constexpr std::array<std::string_view, 2> contact_solver_names = {"gauss_seidel", "newton"};
 
 class LinearCompliance {
  public:

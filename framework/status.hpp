@@ -115,7 +115,7 @@ struct ContactReport {
   double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
   int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again)
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations
-  int contact_fallbacks = 0;   ///< rods, `contact.solver = newton`: steps taken by its fallbacks (damped least squares, Gauss-Seidel) instead of Newton
+  int contact_fallbacks = 0;   ///< `contact.solver = newton`: steps taken by its fallbacks (damped least squares, Gauss-Seidel) instead of Newton
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts

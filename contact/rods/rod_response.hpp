@@ -67,12 +67,9 @@ enum class GapTerm {
 };
 inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "penetration", "full"};
 
-/// The solver of a group's contact problem (rod_group_solver.hpp).
-enum class RodContactSolver {
-  gauss_seidel,  ///< Gauss-Seidel sweeps up to `gs_max` (the thesis): may stop above `contact_tol`
-  newton,        ///< Gauss-Seidel up to `gs_max`, then semismooth Newton to `contact_tol` (the step fails if it cannot)
-};
-inline constexpr std::array<std::string_view, 2> rod_contact_solver_names = {"gauss_seidel", "newton"};
+/// The solver of a group's contact problem (rod_group_solver.hpp): Gauss-Seidel up to
+/// `gs_max`, then with `newton` semismooth Newton to `contact_tol` (the step fails if it cannot).
+using contact::ContactSolver;
 
 /// Parameters shared by every rod strategy (one runtime struct, spec 03 §16.2).
 struct RodContactParams {
@@ -86,7 +83,7 @@ struct RodContactParams {
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
-  RodContactSolver solver = RodContactSolver::gauss_seidel;  ///< the contact solve of a group
+  ContactSolver solver = ContactSolver::gauss_seidel;  ///< the contact solve of a group
   int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
   bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
   int order_seed = 0;          ///< 0: contacts in detection order within a group; otherwise a shuffle with this seed (ordering tests)
@@ -102,7 +99,7 @@ struct RodContactParams {
     v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
-    v.choice("solver", solver, rod_contact_solver_names,
+    v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
     v.field("solver_max", solver_max, {Unit::none, Range::closed(1, 100000), "newton: Newton steps per contact solve after the Gauss-Seidel sweeps"});
     v.field("groups", groups, {Unit::none, Range::any(), "solve contact groups separately (false: one monolithic group of every contacted rod)"});
@@ -379,7 +376,7 @@ class RodResponse {
       }
       // The convergent solver: Newton on the full Coulomb problem of the group from where
       // Gauss-Seidel (or the staggered projections, whose fixed point is the same problem) stopped.
-      if (prm_.solver == RodContactSolver::newton && st.residual > prm_.contact_tol) {
+      if (prm_.solver == ContactSolver::newton && st.residual > prm_.contact_tol) {
         const NewtonContactResult nr = solve_contacts_newton(
             contacts_, order, xs, {.tolerance = prm_.contact_tol, .max_iterations = prm_.solver_max, .fallback_sweeps = 10, .dense_limit = 1500});
         st.newton += nr.iterations;
@@ -388,7 +385,7 @@ class RodResponse {
         st.residual = nr.residual;
       }
       st.unconverged = st.residual > prm_.contact_tol;
-      if (prm_.solver == RodContactSolver::newton && st.unconverged) {
+      if (prm_.solver == ContactSolver::newton && st.unconverged) {
         for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
         st.status = Status::no_convergence;
         st.message = fmt::format(

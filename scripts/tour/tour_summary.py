@@ -37,12 +37,13 @@ def plot(kind, inp, out, *extra):
     return "failed"
 
 
-def info(out):
+def read_text(path, missing):
+    """The file's text without trailing blanks, or `missing` when it cannot be read."""
     try:
-        with open(os.path.join(out, "info.txt")) as f:
-            return f.read().strip()
+        with open(path) as f:
+            return f.read().rstrip()
     except OSError:
-        return ""
+        return missing
 
 
 def git_describe():
@@ -76,12 +77,12 @@ def stability_counts(path):
     return counts
 
 
+def info(out):
+    return read_text(os.path.join(out, "info.txt"), "").strip()
+
+
 def map_text(dir_):
-    try:
-        with open(os.path.join(dir_, "stability_map.txt")) as f:
-            return f.read().rstrip()
-    except OSError:
-        return "(no stability_map.txt)"
+    return read_text(os.path.join(dir_, "stability_map.txt"), "(no stability_map.txt)")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -37,6 +39,20 @@ inline std::filesystem::path temp_dir(const std::string& name) {
   std::filesystem::remove_all(d);
   std::filesystem::create_directories(d);
   return d;
+}
+
+/// Options of an in-process driver run (`run_ablate`, `run_stability`) on a scene of the
+/// source tree: quiet, no plots, output in a fresh temporary directory named after the test.
+template <class Options>
+Options quiet_run(const std::string& scene_file, std::vector<std::string> overrides, double duration, const std::string& name) {
+  Options o;
+  o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/" + scene_file;
+  o.overrides = std::move(overrides);
+  o.duration = duration;
+  o.out_dir = temp_dir(name).string();
+  o.quiet = true;
+  o.plots = false;
+  return o;
 }
 
 inline std::string write_file(const std::filesystem::path& p, const std::string& text) {

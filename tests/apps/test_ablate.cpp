@@ -7,6 +7,7 @@
 
 #include <cstdlib>
 
+#include "ablate_support.hpp"
 #include "apps/ablate.hpp"
 #include "cli_support.hpp"
 #include "framework/timers.hpp"
@@ -19,33 +20,19 @@ using namespace weft::test;
 namespace {
 /// The hanging cloth at 7 x 7 vertices over 0.25 s (6 frames at 24 frames/s).
 AblateOptions tiny(const std::string& name) {
-  AblateOptions o;
-  o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
-  o.overrides = {"cloths.0.mesh.resolution=[7,7]"};
-  o.duration = 0.25;
-  o.out_dir = temp_dir(name).string();
-  o.quiet = true;
-  o.plots = false;
-  return o;
+  return quiet_run<AblateOptions>("hanging_cloth.json", {"cloths.0.mesh.resolution=[7,7]"}, 0.25, name);
 }
 int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 }  // namespace
 
 TEST_SUITE("apps") {
   TEST_CASE("ablate: the reference has zero error against itself") {
-    AblateOptions o = tiny("ablate_self");
-    o.combos = {"cloth_ip_direct"};
-    o.reference = "cloth_ip_direct";
-    o.reference_substeps = 1;
-    o.reference_tighten = false;
-    std::vector<AblateRow> rows;
-    REQUIRE(run_ablate(o, &rows) == 0);
-    REQUIRE(rows.size() == 1);
-    CHECK(rows[0].status == "ok");
-    CHECK(rows[0].frames_compared == 6);
-    CHECK(rows[0].rms_error == 0);
-    CHECK(rows[0].max_error == 0);
-    CHECK(rows[0].newton_iterations > 0);
+    const AblateRow row = self_reference(tiny("ablate_self"), "cloth_ip_direct");
+    CHECK(row.status == "ok");
+    CHECK(row.frames_compared == 6);
+    CHECK(row.rms_error == 0);
+    CHECK(row.max_error == 0);
+    CHECK(row.newton_iterations > 0);
   }
 
   TEST_CASE("ablate: halving dt or tightening the Newton tolerance does not increase the error") {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "ablate_support.hpp"
 #include "apps/ablate.hpp"
 #include "cli_support.hpp"
 #include "framework/timers.hpp"
@@ -17,38 +18,26 @@ using namespace weft::test;
 
 namespace {
 AblateOptions tiny_pile(const std::string& name) {
-  AblateOptions o;
-  o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/rod_pile.json";
+  std::vector<std::string> overrides;
   for (int layer = 0; layer < 4; ++layer) {
-    o.overrides.push_back(fmt::format("rods.{}.count=1", layer));
-    o.overrides.push_back(fmt::format("rods.{}.vertices=8", layer));
+    overrides.push_back(fmt::format("rods.{}.count=1", layer));
+    overrides.push_back(fmt::format("rods.{}.vertices=8", layer));
   }
-  o.duration = 0.06;
-  o.out_dir = temp_dir(name).string();
-  o.quiet = true;
-  o.plots = false;
-  return o;
+  return quiet_run<AblateOptions>("rod_pile.json", std::move(overrides), 0.06, name);
 }
 }  // namespace
 
 TEST_SUITE("apps") {
   TEST_CASE("ablate rods: the reference has zero error against itself on a tiny rod pile") {
-    AblateOptions o = tiny_pile("ablate_rods_self");
-    o.combos = {"rods_impulse"};
-    o.reference = "rods_impulse";
-    o.reference_substeps = 1;
-    o.reference_tighten = false;
-    std::vector<AblateRow> rows;
-    REQUIRE(run_ablate(o, &rows) == 0);
-    REQUIRE(rows.size() == 1);
-    CHECK(rows[0].status == "ok");
-    CHECK(rows[0].steps == 30);
-    CHECK(rows[0].frames_compared == 3);
-    CHECK(rows[0].contacts > 0);  // the comparison includes contact, not only free fall
-    CHECK(rows[0].rms_error == 0);
-    CHECK(rows[0].max_error == 0);
-    CHECK(rows[0].newton_iterations > 0);
-    CHECK(rows[0].penetrations_max == 0);
+    const AblateRow row = self_reference(tiny_pile("ablate_rods_self"), "rods_impulse");
+    CHECK(row.status == "ok");
+    CHECK(row.steps == 30);
+    CHECK(row.frames_compared == 3);
+    CHECK(row.contacts > 0);  // the comparison includes contact, not only free fall
+    CHECK(row.rms_error == 0);
+    CHECK(row.max_error == 0);
+    CHECK(row.newton_iterations > 0);
+    CHECK(row.penetrations_max == 0);
   }
 
   TEST_CASE("ablate rods: one CSV row per applicable rod combination against a tightened direct reference") {

@@ -13,16 +13,10 @@ using namespace weft::test;
 
 namespace {
 StabilityOptions small_grid(const std::string& name) {
-  StabilityOptions o;
-  o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
-  o.overrides = {"cloths.0.mesh.resolution=[7,7]"};
-  o.duration = 0.25;
+  StabilityOptions o = quiet_run<StabilityOptions>("hanging_cloth.json", {"cloths.0.mesh.resolution=[7,7]"}, 0.25, name);
   o.dts = {1.0 / 240, 1.0 / 24};
   o.vary_key = "cloths.0.material.youngs_modulus";
   o.vary_values = {"1e6", "1e8"};
-  o.out_dir = temp_dir(name).string();
-  o.quiet = true;
-  o.plots = false;
   return o;
 }
 }  // namespace
