@@ -47,6 +47,33 @@ void LinearReport::accumulate(const LinearReport& r) {
   }
 }
 
+StepReport& StepReport::merge_substep(const StepReport& next) {
+  newton.iterations += next.newton.iterations;
+  newton.final_residual = next.newton.final_residual;
+  newton.tolerance = next.newton.tolerance;
+  newton.stop_reason = next.newton.stop_reason;
+  newton.round_off_steps += next.newton.round_off_steps;
+  newton.history.insert(newton.history.end(), next.newton.history.begin(), next.newton.history.end());
+  if (next.newton.status != Status::success) {
+    newton.status = next.newton.status;
+    newton.message = next.newton.message;
+  }
+  linear.accumulate(next.linear);
+  contact.merge_end(next.contact);
+  times += next.times;
+  substeps += next.substeps;
+  subdivisions = std::max(subdivisions, next.subdivisions);
+  discarded_newton_iterations += next.discarded_newton_iterations;
+  if (retry_reason.empty()) retry_reason = next.retry_reason;
+  time = next.time;
+  if (!next.ok()) {
+    status = next.status;
+    failed_stage = next.failed_stage;
+    message = next.message;
+  }
+  return *this;
+}
+
 Json to_json(const LinearReport& r) {
   Json j{{"status", to_string(r.status)}, {"solves", r.solves}, {"iterations", r.iterations},
          {"max_relative_residual", num(r.relative_residual)}, {"setup_seconds", r.setup_seconds},
@@ -117,6 +144,7 @@ Json to_json(const ContactReport& r) {
   put("capped_groups", r.capped_groups);
   put("stretched_groups", r.stretched_groups);
   put("contact_newton", r.contact_newton);
+  put("damped_steps", r.damped_steps);
   put("contact_fallbacks", r.contact_fallbacks);
   put("max_stretch", r.max_stretch);
   put("redetections", r.redetections);
@@ -139,6 +167,12 @@ Json to_json(const StepReport& r) {
          {"energy", energies},   {"newton", to_json(r.newton)},
          {"linear", to_json(r.linear)}, {"contact", to_json(r.contact)},
          {"seconds", to_json(r.times)}};
+  if (r.substeps > 1 || !r.retry_reason.empty()) {
+    j["substeps"] = r.substeps;
+    j["subdivisions"] = r.subdivisions;
+    j["discarded_newton_iterations"] = r.discarded_newton_iterations;
+    j["retry_reason"] = r.retry_reason;
+  }
   if (!r.failed_stage.empty()) j["failed_stage"] = r.failed_stage;
   if (!r.message.empty()) j["message"] = r.message;
   return j;

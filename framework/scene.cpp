@@ -229,6 +229,9 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
               fmt::format("divides the frame interval {} s (e.g. {} or {} s)", frame, frame / std::floor(ratio),
                           frame / std::ceil(ratio)));
   if (s.cloths.empty() && s.rods.empty()) c.fail("cloths, rods: a scene needs at least one cloth or one rod family");
+  if (!s.rods.empty())
+    c.require(s.time.max_subdivisions == 0, "time.max_subdivisions", s.time.max_subdivisions,
+              "0 for rod scenes (step subdivision is a cloth failsafe; the rod stability studies count failed steps)");
   c.require(s.time.duration >= s.time.dt, "time.duration", s.time.duration, fmt::format(">= time.dt = {} s", s.time.dt));
   for (size_t k = 0; k < s.cloths.size(); ++k) {
     const auto& cl = s.cloths[k];

@@ -280,6 +280,7 @@ struct TimeSpec {
   double dt = 1.0 / 240.0;       ///< [s]
   double duration = 2.0;         ///< [s]
   double frame_rate = 24.0;      ///< [1/s] frames written per simulated second
+  int max_subdivisions = 0;      ///< cloth: a failed step is retried as 2 half steps, recursively, this deep (0: it fails)
   int steps_per_frame() const;
   int num_frames() const;
   template <class V>
@@ -287,6 +288,11 @@ struct TimeSpec {
     v.field("dt", dt, {Unit::time, Range::open_closed(0, 1), "time step; must divide the frame interval"});
     v.field("duration", duration, {Unit::time, Range::gt(0), "simulated time"});
     v.field("frame_rate", frame_rate, {Unit::frequency, Range::open_closed(0, 10000), "frames per simulated second"});
+    v.field("max_subdivisions", max_subdivisions,
+            {Unit::none, Range::closed(0, 10),
+             "cloth: a step that fails (Newton or the contact response does not converge, a non-finite state) is retried "
+             "from its start as two steps of dt/2, recursively down to dt/2^max_subdivisions; the step report counts the "
+             "substeps and keeps the first failure. 0: the step fails (rods: must be 0, a stability study counts failures)"});
   }
 };
 

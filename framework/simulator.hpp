@@ -9,6 +9,8 @@
 #include <memory>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "framework/block_csr.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params_json.hpp"
@@ -95,11 +97,65 @@ class Simulator {
   Simulator(const Simulator&) = delete;
   Simulator& operator=(const Simulator&) = delete;
 
-  /// Advance by one time step of `scene().spec.time.dt`.
+  /// Advance by one time step of `scene().spec.time.dt`. With `time.max_subdivisions` > 0, a
+  /// step that fails is retried from its start as two steps of dt/2 (recursively): the report
+  /// then counts the substeps, keeps the first failure in `retry_reason` and includes the time
+  /// spent on the failed attempts.
   StepReport step() {
-    StepReport rep;
     const double dt = scene_.spec.time.dt;
-    rep.step = ++steps_;
+    ++steps_;
+    StepReport rep = advance(dt, scene_.spec.time.max_subdivisions);
+    rep.step = steps_;
+    rep.dt = dt;
+    if (rep.ok())
+      rep.energy = energies();
+    else if (rep.subdivisions > 0)
+      rep.message += fmt::format(" (in a substep of dt/{}; the step was first retried because {})", 1 << rep.subdivisions, rep.retry_reason);
+    return rep;
+  }
+  const State& state() const { return state_; }
+  /// Writable state, e.g. to set initial conditions before the first step. Topology and
+  /// which vertices are free must not change.
+  State& state() { return state_; }
+  const Scene& scene() const { return scene_; }
+  const Params& params() const { return prm_; }
+  const Energy& energy_model() const { return energy_; }
+  /// Kinetic and potential energies of the current state.
+  EnergyReport energies() const {
+    EnergyReport e;
+    e.kinetic = state_.kinetic_energy();
+    energy_.energy_terms(state_, e.terms);
+    for (const auto& [name, value] : e.terms) e.potential += value;
+    return e;
+  }
+  /// dV/dx at the current state with non-free entries zeroed: the static force residual.
+  Eigen::VectorXd potential_gradient() const {
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(state_.x.size());
+    energy_.add_gradient(state_, g);
+    state_.zero_constrained(g);
+    return g;
+  }
+
+ private:
+  // Advances by dt, as 2^k substeps when an attempt fails and `depth` allows it.
+  StepReport advance(double dt, int depth) {
+    if (depth == 0) return attempt(dt);
+    const State start = state_;  // the policies leave the state alone only when the integrator fails
+    StepReport first = attempt(dt);
+    if (first.ok() || first.status == Status::invalid_input || first.status == Status::interrupted) return first;
+    state_ = start;
+    StepReport rep = advance(0.5 * dt, depth - 1);
+    if (rep.ok()) rep.merge_substep(advance(0.5 * dt, depth - 1));
+    rep.times += first.times;
+    rep.discarded_newton_iterations += first.newton.iterations;
+    rep.subdivisions += 1;
+    rep.retry_reason = fmt::format("at dt = {} s, {}: {}", dt, first.failed_stage, first.message);
+    return rep;
+  }
+
+  // One attempt at a step of dt from the current state.
+  StepReport attempt(double dt) {
+    StepReport rep;
     rep.dt = dt;
     scene_.constrained_positions(state_.t + dt, state_, target_);
     if constexpr (HasBeginStep<Energy>) energy_.begin_step(state_, state_.t + dt);
@@ -134,34 +190,8 @@ class Simulator {
       return rep.fail("integrator", Status::numerical_issue, "non-finite positions or velocities after the step", state_.t);
     state_.t += dt;
     rep.time = state_.t;
-    rep.energy = energies();
     return rep;
   }
-
-  const State& state() const { return state_; }
-  /// Writable state, e.g. to set initial conditions before the first step. Topology and
-  /// which vertices are free must not change.
-  State& state() { return state_; }
-  const Scene& scene() const { return scene_; }
-  const Params& params() const { return prm_; }
-  const Energy& energy_model() const { return energy_; }
-  /// Kinetic and potential energies of the current state.
-  EnergyReport energies() const {
-    EnergyReport e;
-    e.kinetic = state_.kinetic_energy();
-    energy_.energy_terms(state_, e.terms);
-    for (const auto& [name, value] : e.terms) e.potential += value;
-    return e;
-  }
-  /// dV/dx at the current state with non-free entries zeroed: the static force residual.
-  Eigen::VectorXd potential_gradient() const {
-    Eigen::VectorXd g = Eigen::VectorXd::Zero(state_.x.size());
-    energy_.add_gradient(state_, g);
-    state_.zero_constrained(g);
-    return g;
-  }
-
- private:
 
   Scene scene_;
   Params prm_;

@@ -116,6 +116,7 @@ struct ContactReport {
   int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again)
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations
   int contact_fallbacks = 0;   ///< `contact.solver = newton`: steps taken by its fallbacks (damped least squares, Gauss-Seidel) instead of Newton
+  int damped_steps = 0;        ///< ADONIS, staggered projections: rod steps of the constrained Newton iteration cut by its strain trust region (contact.limit_stretch)
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts
@@ -157,6 +158,7 @@ struct ContactReport {
     redetections += end.redetections;
     contact_newton += end.contact_newton;
     contact_fallbacks += end.contact_fallbacks;
+    damped_steps += end.damped_steps;
     max_penetration = end.max_penetration;
     solve_penetration = std::max(solve_penetration, end.solve_penetration);
     return *this;
@@ -182,8 +184,16 @@ struct StepReport {
   LinearReport linear;       ///< summed over the Newton iterations of the step
   ContactReport contact;
   EnergyReport energy;
-  StageTimes times;
+  StageTimes times;          ///< includes failed attempts that were retried as substeps
+  // Step subdivision (`time.max_subdivisions`, cloth): a failed attempt is retried as two half steps.
+  int substeps = 1;          ///< steps of dt/2^k taken to cover dt (1: no subdivision)
+  int subdivisions = 0;      ///< deepest halving used: the smallest substep was dt/2^subdivisions
+  int discarded_newton_iterations = 0;  ///< Newton iterations of the failed attempts (not in `newton`)
+  std::string retry_reason;  ///< why the first attempt at dt failed ("" when it did not)
   bool ok() const { return status == Status::success; }
+  /// Appends the report of the next substep: iterations, solves, times and event counters add
+  /// up, the residuals, contact state and status are the later substep's.
+  StepReport& merge_substep(const StepReport& next);
   /// Marks the step as failed in `stage` for `why`; its time is the end of the step that
   /// failed (`step_start` + dt).
   StepReport& fail(std::string stage, Status s, std::string why, double step_start) {
