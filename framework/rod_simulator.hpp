@@ -233,10 +233,11 @@ class RodSimulator {
   double time() const { return centre_.t; }  ///< start of the current step
   double dt() const { return dt_; }
   const std::vector<ObstacleSpec>& obstacles() const { return scene_.spec.obstacles; }
-  /// K_r = M + h^2 H(q + d_r) (exact Hessian; the PSD projection if that does not factorise), factorised.
-  Status relinearize(int r) {
+  /// K_r = M + h^2 H(q + d_r), factorised: the exact Hessian (the PSD projection if that does
+  /// not factorise), or the PSD projection when `mode` says so.
+  Status relinearize(int r, HessianMode mode = HessianMode::exact) {
     Body& b = bodies_[r];
-    if (Integ::relinearize(b, dt_, HessianMode::exact) == Status::success) return Status::success;
+    if (mode == HessianMode::exact && Integ::relinearize(b, dt_, HessianMode::exact) == Status::success) return Status::success;
     return Integ::relinearize(b, dt_, HessianMode::projected);
   }
   /// B <- K_r^-1 B (the last linearisation); held rows come out zero.

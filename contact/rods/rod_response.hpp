@@ -48,6 +48,7 @@
 #include "contact/coulomb.hpp"
 #include "contact/rods/rod_detection.hpp"
 #include "contact/rods/rod_group_solver.hpp"
+#include "framework/concepts.hpp"
 #include "framework/params.hpp"
 #include "framework/scene.hpp"
 #include "framework/status.hpp"
@@ -79,6 +80,8 @@ struct RodContactParams {
   int gs_max = 150;            ///< Gauss-Seidel sweeps per contact solve
   double stretch_tol = 0.01;   ///< ADONIS: a rod whose edges extend more than this is re-linearised
   int newton_max = 100;        ///< ADONIS, staggered projections: constrained Newton iterations per group
+  bool limit_stretch = false;  ///< ADONIS, staggered projections: the strain trust region of the constrained Newton step
+  HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
   GapTerm gap = GapTerm::none;
@@ -95,6 +98,14 @@ struct RodContactParams {
     v.field("gs_max", gs_max, {Unit::none, Range::closed(1, 1000000), "Gauss-Seidel sweeps per contact solve"});
     v.field("stretch_tol", stretch_tol, {Unit::none, Range::gt(0), "ADONIS: re-linearise rods whose edges extend more than this"});
     v.field("newton_max", newton_max, {Unit::none, Range::closed(1, 100000), "constrained Newton iterations per contact group"});
+    v.choice("relinearization", relinearization, hessian_mode_names,
+              "ADONIS, staggered projections: the Hessian of K = M + h^2 H at the re-linearisations after the first (at "
+              "d_DEL, a minimiser, the exact one): exact (the thesis; falls back to projected when it does not factorise) or "
+              "projected (per-element PSD projection: K positive definite, as the constrained Newton step needs)");
+    v.field("limit_stretch", limit_stretch,
+            {Unit::none, Range::any(),
+             "ADONIS, staggered projections: halve a rod's constrained Newton step until it stays in the model's domain and its "
+             "largest edge strain is at most max(10 stretch_tol, twice the iterate's) (false: full steps, the thesis)"});
     v.field("sp_max", sp_max, {Unit::none, Range::closed(1, 100000), "staggered projections: alternations per Newton iteration"});
     v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
@@ -117,6 +128,7 @@ struct RodContactParams {
 struct GroupStats {
   int contacts = 0, outer = 0, sweeps = 0, relinearized = 0, sp_iterations = 0;
   int newton = 0, fallbacks = 0;  ///< Newton contact solver: steps, and steps taken by its fallbacks
+  int damped = 0;                 ///< rod steps of the constrained Newton iteration cut by its strain trust region
   double residual = 0;
   bool unconverged = false, capped = false;
   bool stretched = false;  ///< converged (the iterate stopped moving) with a rod above stretch_tol
@@ -221,6 +233,7 @@ class RodResponse {
         rep.stretched_groups += st.stretched;
         rep.contact_newton += st.newton;
         rep.contact_fallbacks += st.fallbacks;
+        rep.damped_steps += st.damped;
         if (st.status != Status::success && rep.status == Status::success) {
           rep.status = st.status;
           rep.message = st.message;
@@ -299,6 +312,37 @@ class RodResponse {
     }
     k.W = 0.5 * (k.W + k.W.transpose()).eval();
     k.scale = coulomb_scale(k.W);
+  }
+
+  // An optional safeguard of the constrained Newton iteration (ADONIS, staggered
+  // projections; `limit_stretch`, off by default): a strain trust region. A rod's step
+  // d_r -> xs_r is halved until the iterate stays in the model's domain and its largest edge
+  // strain is at most max(10 stretch_tol, 2 x that of d_r); the iteration goes on from there.
+  // Far from runaways the full step is taken, so the fixed point is the thesis'. Aimed at the
+  // runaway of the iterate of an exact, indefinite K_r (an edge stretched by 1e54 at the
+  // fourth iteration on the 1000-rod hair ball at dt = 10 ms); it does not cure it: the
+  // iteration then keeps being cut (docs/rods.md). Returns the rods whose step was cut.
+  template <class System>
+  int limit_outer_step(System& sys, const std::vector<int>& rods, GroupDisplacements& xs) const {
+    int cut = 0;
+    Eigen::VectorXd trial;
+    for (size_t i = 0; i < rods.size(); ++i) {
+      const int r = rods[i];
+      const Eigen::VectorXd& d = sys.body(r).d;
+      const double cap = std::max(10 * prm_.stretch_tol, 2 * sys.stretch(r, d));
+      const auto& body = sys.body(r);
+      const auto fits = [&](const Eigen::VectorXd& x) { return body.model.admissible(body.q + x, body.frames) && sys.stretch(r, x) <= cap; };
+      if (fits(xs[i])) continue;
+      const Eigen::VectorXd delta = xs[i] - d;
+      double alpha = 0.5;
+      for (int halving = 1; halving <= 30; ++halving, alpha *= 0.5) {
+        trial = d + alpha * delta;
+        if (fits(trial)) break;
+      }
+      xs[i] = fits(trial) ? trial : d;
+      ++cut;
+    }
+    return cut;
   }
 
   template <class System>
@@ -395,6 +439,11 @@ class RodResponse {
             ids.size(), rods.size(), rods.front(), st.residual, prm_.contact_tol, st.newton, st.fallbacks, outer);
         return st;
       }
+      // A cut step leaves the contact laws unsatisfied at the iterate: the iteration goes on.
+      int cut = 0;
+      if constexpr (relinearizes)
+        if (prm_.limit_stretch) cut = limit_outer_step(sys, rods, xs);
+      st.damped += cut;
       double change = 0;  // largest move of a vertex coordinate in this iteration
       for (size_t i = 0; i < rods.size(); ++i) {
         auto& d = sys.body(rods[i]).d;
@@ -406,12 +455,12 @@ class RodResponse {
         std::vector<int> over;
         for (int r : rods)
           if (sys.stretch(r, sys.body(r).d) > prm_.stretch_tol) over.push_back(r);
-        if (over.empty()) break;
+        if (over.empty() && cut == 0) break;
         // The iterate stopped moving: the constrained Newton iteration has converged, and the
         // step's solution itself stretches a rod beyond the tolerance (e.g. a scripted root
         // pulling a rod whose tip the wall holds). Re-linearising again changes nothing; the
         // step is reported (`stretched_groups`), as a capped one is.
-        if (change <= prm_.contact_tol) {
+        if (change <= prm_.contact_tol && cut == 0) {
           st.stretched = true;
           break;
         }
@@ -434,7 +483,7 @@ class RodResponse {
           }
         }
         for (int r : over) {
-          if (sys.relinearize(r) != Status::success) {
+          if (sys.relinearize(r, prm_.relinearization) != Status::success) {
             st.status = Status::numerical_issue;
             st.message = fmt::format("rod {}: M + h^2 H cannot be factorised at Newton iteration {}", r, outer);
             return st;
