@@ -113,6 +113,7 @@ class Simulator {
       rep.message += fmt::format(" (in a substep of dt/{}; the step was first retried because {})", 1 << rep.subdivisions, rep.retry_reason);
     return rep;
   }
+
   const State& state() const { return state_; }
   /// Writable state, e.g. to set initial conditions before the first step. Topology and
   /// which vertices are free must not change.
