@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "integrators/newton.hpp"
+#include "tests/support/diagonal_problem.hpp"
 
 using namespace weft;
 using namespace weft::integrators;
@@ -14,36 +15,23 @@ double W(double x) { return x * x * x * x - 6 * x * x - 72 * x; }
 double dW(double x) { return 4 * x * x * x - 12 * x - 72; }
 double ddW(double x) { return 12 * x * x - 12; }
 
-class Quartic final : public NewtonProblem {
+class Quartic final : public support::DiagonalProblem {
  public:
+  Quartic() : DiagonalProblem(1, 0) {}
   double potential(const Eigen::VectorXd& d) override { return W(d[0]); }
   void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) override { f = Eigen::VectorXd::Constant(1, dW(d[0])); }
-  double norm(const Eigen::VectorXd& f) const override { return std::abs(f[0]); }
   void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
-    k_ = ddW(d[0]);
-    if (mode == HessianMode::projected) k_ = std::max(k_, 0.0);
-    k_ += shift;  // M~ = 1
+    k_[0] = ddW(d[0]);
+    if (mode == HessianMode::projected) k_[0] = std::max(k_[0], 0.0);
+    k_[0] += shift;  // M~ = 1
   }
-  Status factorize() override { return k_ != 0 ? Status::success : Status::numerical_issue; }
-  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
-  LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
-    LinearReport r;
-    r.indefinite = k_ < 0;
-    p = rhs / k_;
-    return r;
-  }
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { y = k_ * x; }
-  void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override { out = f; }
   double merit_scale() const override { return 0; }
-
- private:
-  double k_ = 0;
 };
 // E(d) = C + (d - 1)^4 / 4 + (d - 1)^2 / 2 with a large constant C: near the minimum the
 // decrease of E is far below the round-off of E itself (spec 02 §6.6).
-class OffsetQuartic final : public NewtonProblem {
+class OffsetQuartic final : public support::DiagonalProblem {
  public:
-  explicit OffsetQuartic(double c) : c_(c) {}
+  explicit OffsetQuartic(double c) : DiagonalProblem(1), c_(c) {}
   double potential(const Eigen::VectorXd& d) override {
     const double u = d[0] - 1;
     return c_ + 0.25 * u * u * u * u + 0.5 * u * u;
@@ -52,20 +40,11 @@ class OffsetQuartic final : public NewtonProblem {
     const double u = d[0] - 1;
     f = Eigen::VectorXd::Constant(1, u * u * u + u);
   }
-  double norm(const Eigen::VectorXd& f) const override { return std::abs(f[0]); }
-  void assemble(const Eigen::VectorXd& d, HessianMode, double shift) override { k_ = 3 * (d[0] - 1) * (d[0] - 1) + 1 + shift; }
-  Status factorize() override { return Status::success; }
-  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
-  LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
-    p = rhs / k_;
-    return {};
-  }
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { y = k_ * x; }
-  void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override { out = f; }
+  void assemble(const Eigen::VectorXd& d, HessianMode, double shift) override { k_[0] = 3 * (d[0] - 1) * (d[0] - 1) + 1 + shift; }
   double merit_scale() const override { return 0; }
 
  private:
-  double c_, k_ = 1;
+  double c_;
 };
 
 /// minimize() from x (updated in place) with fresh reports.

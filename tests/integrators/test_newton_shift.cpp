@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "integrators/newton.hpp"
+#include "tests/support/diagonal_problem.hpp"
 
 using namespace weft;
 using namespace weft::integrators;
@@ -20,9 +21,9 @@ namespace {
 // folded hinges) started at different distances from their maxima, so that some element
 // stays indefinite for many iterations, and one soft convex unknown y (the rest of the
 // sheet) that Newton solves in one step when it is not damped.
-class Wells final : public NewtonProblem {
+class Wells final : public support::DiagonalProblem {
  public:
-  Wells(int n, double c) : n_(n), c_(c), k_(n + 1) {}
+  Wells(int n, double c) : DiagonalProblem(n + 1), n_(n), c_(c) {}
   double potential(const Eigen::VectorXd& d) override {
     double e = 0.5 * (d[n_] - 1) * (d[n_] - 1);
     for (int i = 0; i < n_; ++i) e += 0.5 * d[i] * d[i] + 0.25 * c_ * (d[i] * d[i] - 1) * (d[i] * d[i] - 1);
@@ -33,7 +34,6 @@ class Wells final : public NewtonProblem {
     for (int i = 0; i < n_; ++i) f[i] = d[i] + c_ * d[i] * (d[i] * d[i] - 1);
     f[n_] = d[n_] - 1;
   }
-  double norm(const Eigen::VectorXd& f) const override { return f.norm(); }
   void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
     for (int i = 0; i < n_; ++i) {
       const double h = c_ * (3 * d[i] * d[i] - 1);  // the element's Hessian; the mass stays
@@ -41,22 +41,11 @@ class Wells final : public NewtonProblem {
     }
     k_[n_] = 1 + shift;
   }
-  Status factorize() override { return Status::success; }
-  LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
-    LinearReport r;
-    r.indefinite = k_.minCoeff() <= 0;
-    p = rhs.cwiseQuotient(k_);
-    return r;
-  }
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { y = k_.cwiseProduct(x); }
-  void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override { out = f; }
   double merit_scale() const override { return 0; }
-  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
 
  private:
   int n_;
   double c_;
-  Eigen::VectorXd k_;
 };
 
 NewtonReport run(double max_shift, bool& ok) {

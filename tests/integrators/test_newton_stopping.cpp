@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "integrators/newton.hpp"
+#include "tests/support/diagonal_problem.hpp"
 
 using namespace weft;
 using namespace weft::integrators;
@@ -16,28 +17,18 @@ namespace {
 // E(x) = (x - 1)^2 / 2 on x < wall, +infinity beyond (outside the model's domain, as an
 // inverted element): from just below the wall every Newton step towards 1 is cut to the
 // sliver left before the wall.
-class Walled final : public NewtonProblem {
+class Walled final : public support::DiagonalProblem {
  public:
-  explicit Walled(double wall) : wall_(wall) {}
+  explicit Walled(double wall) : DiagonalProblem(1), wall_(wall) {}
   double potential(const Eigen::VectorXd& d) override {
     return d[0] < wall_ ? 0.5 * (d[0] - 1) * (d[0] - 1) : std::numeric_limits<double>::infinity();
   }
   void gradient(const Eigen::VectorXd& d, Eigen::VectorXd& f) override { f = Eigen::VectorXd::Constant(1, d[0] - 1); }
-  double norm(const Eigen::VectorXd& f) const override { return f.norm(); }
-  void assemble(const Eigen::VectorXd&, HessianMode, double shift) override { k_ = 1 + shift; }
-  Status factorize() override { return Status::success; }
-  LinearReport solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& p) override {
-    p = rhs / k_;
-    return {};
-  }
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const override { y = k_ * x; }
-  void mass_inverse(const Eigen::VectorXd& f, Eigen::VectorXd& out) const override { out = f; }
+  void assemble(const Eigen::VectorXd&, HessianMode, double shift) override { k_[0] = 1 + shift; }
   double merit_scale() const override { return 1; }
-  double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(v); }
 
  private:
   double wall_;
-  double k_ = 1;
 };
 
 NewtonFailure run(double start, double wall, NewtonReport& nr) {
