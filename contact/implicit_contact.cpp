@@ -22,6 +22,8 @@ ObstacleConstraints::Params obstacle_params(const ImplicitContact::Params& p) {
   o.thickness = p.impulse.thickness;
   o.margin = p.margin;
   o.projection_tolerance = p.projection_tolerance;
+  o.redetection_depth = p.redetection_depth;
+  o.max_redetections = p.max_redetections;
   return o;
 }
 

@@ -3,7 +3,8 @@
 /// `ImplicitContact`: contact handled inside the implicit solve, as Baraff & Witkin (1998)
 /// do it, with a collision failsafe after it.
 ///  - Obstacles: equality constraints of the solve, released when they pull, with Coulomb
-///    friction (`ObstacleConstraints`, obstacle_constraints.hpp). The linear solver takes
+///    friction, re-detected when the solution crosses an obstacle where the step had no
+///    contact (`ObstacleConstraints`, obstacle_constraints.hpp). The linear solver takes
 ///    them through its context (modified PCG filters, PPCG and Direct prefilter).
 ///  - Cloth against cloth: repulsion springs, potential terms of the solve (below).
 ///  - After the solve, the `Impulse` pipeline (impulse.hpp) as the failsafe: repulsion and
@@ -67,6 +68,8 @@ class ImplicitContact {
     double margin = 1e-8;               ///< [m] >= 0: obstacle contacts start within thickness + margin
     double projection_tolerance = 1e-9; ///< [m] >= 0: depth below h left alone by the obstacle projection
     double spring_stiffness = 100;      ///< s > 0: spring stiffness k = s m_eff / dt^2
+    double redetection_depth = 1e-4;    ///< [m] >= 0: obstacle re-detection inside the step (obstacle_constraints.hpp)
+    int max_redetections = 4;           ///< re-detection rounds per step (0: off)
     template <class V>
     void visit(V& v) {
       impulse.visit(v);
@@ -76,12 +79,15 @@ class ImplicitContact {
               {Unit::length, Range::ge(0), "after the solve, vertices deeper than this below an obstacle's thickness surface are projected onto it"});
       v.field("spring_stiffness", spring_stiffness,
               {Unit::none, Range::gt(0), "cloth-cloth repulsion springs: k = s m_eff / dt^2 (a predicted violation shrinks to 1 / (1 + s))"});
+      ObstacleConstraints::Params::visit_redetection(v, redetection_depth, max_redetections);
     }
     static Checker validate(const Params& p) {
       Checker c = Impulse::Params::validate(p.impulse);
       c.require(p.margin >= 0, "margin", p.margin, ">= 0")
           .require(p.projection_tolerance >= 0, "projection_tolerance", p.projection_tolerance, ">= 0")
-          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0");
+          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0")
+          .require(p.redetection_depth >= 0, "redetection_depth", p.redetection_depth, ">= 0")
+          .require(p.max_redetections >= 0 && p.max_redetections <= 100, "max_redetections", p.max_redetections, "in [0, 100]");
       return c;
     }
   };
@@ -109,6 +115,8 @@ class ImplicitContact {
   void add_hessian(const State& s, ElementBuffer& buf, HessianMode mode) const;
   void constraints(const State& trial, ConstraintSet& out) const { obstacles_.constraints(trial, out); }
   void accept_reactions(const Eigen::VectorXd& force) { obstacles_.accept_reactions(force); }
+  /// Obstacle re-detection inside the step (ObstacleConstraints::redetect).
+  int redetect(const State& start, const State& trial, double dt) { return obstacles_.redetect(start, trial, dt); }
   ContactReport end_step(State& s, double dt);
 
   const Params& params() const { return prm_; }
@@ -129,6 +137,7 @@ class ImplicitContact {
 
 static_assert(ContactStrategy<ImplicitContact>);
 static_assert(HasConstraints<ImplicitContact>);
+static_assert(HasRedetection<ImplicitContact>);
 static_assert(HasDynamicPattern<ImplicitContact>);
 
 }  // namespace weft::contact

@@ -35,16 +35,79 @@ Eigen::Vector3d ObstacleConstraints::obstacle_velocity(int o, const Eigen::Vecto
   return (x - back) / dt;
 }
 
+ObstacleConstraints::Contact ObstacleConstraints::make_contact(int i, int o, const State& s, double dt, const Contact* kept) const {
+  const Eigen::Vector3d x = s.position(i), v = s.velocity(i);
+  const Distance d = end_[o].distance(x);
+  // Relative velocity at the start of the step (the obstacle's over the step).
+  const Eigen::Vector3d vrel = v - (carry(o, x) - x) / dt;
+  const double vn = d.grad.dot(vrel);
+  Contact c;
+  if (kept) c = *kept;
+  c.vertex = i;
+  c.obstacle = o;
+  const double mu = obstacles_[o].friction;
+  if (mu == 0) {
+    c.mode = Mode::frictionless;
+  } else if (!kept || c.mode == Mode::frictionless) {
+    // New contact: the impact cone on the relative velocity at the start of the step.
+    const Eigen::Vector3d vt = vrel - vn * d.grad;
+    const double approach = std::max(0.0, -vn);
+    // (A slip below the projection tolerance over the step counts as none.)
+    if (vt.norm() * dt <= mu * approach * dt + prm_.projection_tolerance) {
+      c.mode = Mode::stick;
+    } else {
+      c.mode = Mode::slide;
+      c.slip = vt.normalized();
+      c.normal_force = mass_[i] * approach / dt;
+    }
+  }
+  return c;
+}
+
+int ObstacleConstraints::prepare_contacts(const State& s) {
+  // Several obstacles at one vertex: normal constraints only (no stick).
+  for (size_t a = 0; a < contacts_.size();) {
+    size_t b = a + 1;
+    while (b < contacts_.size() && contacts_[b].vertex == contacts_[a].vertex) ++b;
+    if (b - a > 1)
+      for (size_t c = a; c < b; ++c)
+        if (contacts_[c].mode == Mode::stick) {
+          contacts_[c].mode = Mode::slide;
+          contacts_[c].slip.setZero();  // unknown until the end of the step: no kinetic force this step
+        }
+    a = b;
+  }
+  // The step's anchors (stick) and kinetic forces (slide).
+  int sticking = 0;
+  for (Contact& c : contacts_) {
+    c.friction.setZero();
+    const Eigen::Vector3d x = s.position(c.vertex);
+    if (c.mode == Mode::stick) {
+      const Eigen::Vector3d a = carry(c.obstacle, x);
+      const Distance da = end_[c.obstacle].distance(a);
+      c.anchor = a + (prm_.thickness - da.phi) * da.grad;
+      ++sticking;
+    } else if (c.mode == Mode::slide) {
+      const Eigen::Vector3d n = end_[c.obstacle].distance(x).grad;
+      const Eigen::Vector3d tangent = c.slip - c.slip.dot(n) * n;
+      if (tangent.norm() > 1e-12) c.friction = -obstacles_[c.obstacle].friction * c.normal_force * tangent.normalized();
+    }
+  }
+  return sticking;
+}
+
 ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
   ContactReport r;
   ScopedTimer t(r.detection_seconds);
   have_reactions_ = false;
+  redetections_ = 0;
+  redetected_ = 0;
   const int no = static_cast<int>(obstacles_.size());
   for (int o = 0; o < no; ++o) {
     start_[o] = ObstaclePose::at(obstacles_[o], s.t);
     end_[o] = ObstaclePose::at(obstacles_[o], s.t + dt);
   }
-  const double delta = prm_.thickness, reach = prm_.thickness + prm_.margin;
+  const double reach = prm_.thickness + prm_.margin;
   std::vector<Contact> next;
   size_t old = 0;
   int receded = 0;
@@ -57,70 +120,49 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
       const bool kept = old < contacts_.size() && key(contacts_[old].vertex, contacts_[old].obstacle, no) == k;
       if (std::binary_search(released_.begin(), released_.end(), k)) continue;  // released at the last step
       const Distance d = end_[o].distance(x);
-      // Relative velocity at the start of the step (the obstacle's over the step).
-      const Eigen::Vector3d vrel = v - (carry(o, x) - x) / dt;
-      const double vn = d.grad.dot(vrel);
+      const double vn = d.grad.dot(v - (carry(o, x) - x) / dt);
       // In contact: the predicted position within reach of the obstacle where it will be,
       // or the position within reach and not separating.
       if (end_[o].distance(xp).phi > reach && !(d.phi <= reach && vn * dt <= prm_.margin)) {
         receded += kept;
         continue;
       }
-      Contact c;
-      if (kept) c = contacts_[old];
-      c.vertex = i;
-      c.obstacle = o;
-      const double mu = obstacles_[o].friction;
-      if (mu == 0) {
-        c.mode = Mode::frictionless;
-      } else if (!kept || c.mode == Mode::frictionless) {
-        // New contact: the impact cone on the relative velocity at the start of the step.
-        const Eigen::Vector3d vt = vrel - vn * d.grad;
-        const double approach = std::max(0.0, -vn);
-        // (A slip below the projection tolerance over the step counts as none.)
-        if (vt.norm() * dt <= mu * approach * dt + prm_.projection_tolerance) {
-          c.mode = Mode::stick;
-        } else {
-          c.mode = Mode::slide;
-          c.slip = vt.normalized();
-          c.normal_force = mass_[i] * approach / dt;
-        }
-      }
-      next.push_back(c);
-    }
-  }
-  // Several obstacles at one vertex: normal constraints only (no stick).
-  for (size_t a = 0; a < next.size();) {
-    size_t b = a + 1;
-    while (b < next.size() && next[b].vertex == next[a].vertex) ++b;
-    if (b - a > 1)
-      for (size_t c = a; c < b; ++c)
-        if (next[c].mode == Mode::stick) {
-          next[c].mode = Mode::slide;
-          next[c].slip.setZero();  // unknown until the end of the step: no kinetic force this step
-        }
-    a = b;
-  }
-  // The step's anchors (stick) and kinetic forces (slide).
-  for (Contact& c : next) {
-    c.friction.setZero();
-    const Eigen::Vector3d x = s.position(c.vertex);
-    if (c.mode == Mode::stick) {
-      const Eigen::Vector3d a = carry(c.obstacle, x);
-      const Distance da = end_[c.obstacle].distance(a);
-      c.anchor = a + (delta - da.phi) * da.grad;
-      ++r.sticking;
-    } else if (c.mode == Mode::slide) {
-      const Eigen::Vector3d n = end_[c.obstacle].distance(x).grad;
-      const Eigen::Vector3d tangent = c.slip - c.slip.dot(n) * n;
-      if (tangent.norm() > 1e-12) c.friction = -obstacles_[c.obstacle].friction * c.normal_force * tangent.normalized();
+      next.push_back(make_contact(i, o, s, dt, kept ? &contacts_[old] : nullptr));
     }
   }
   r.released = static_cast<int>(released_.size()) + receded;
   released_.clear();
   contacts_ = std::move(next);
+  r.sticking = prepare_contacts(s);
   r.contacts = r.obstacle_contacts = static_cast<int>(contacts_.size());
   return r;
+}
+
+int ObstacleConstraints::redetect(const State& start, const State& trial, double dt) {
+  if (redetections_ >= prm_.max_redetections || obstacles_.empty()) return 0;
+  const int no = static_cast<int>(obstacles_.size());
+  std::vector<Contact> added;
+  size_t at = 0;
+  for (int i = 0; i < trial.num_vertices(); ++i) {
+    if (!free_[i]) continue;
+    while (at < contacts_.size() && contacts_[at].vertex < i) ++at;
+    const Eigen::Vector3d x = trial.position(i);
+    for (int o = 0; o < no; ++o) {
+      bool known = false;
+      for (size_t c = at; c < contacts_.size() && contacts_[c].vertex == i; ++c) known |= contacts_[c].obstacle == o;
+      if (known || prm_.thickness - end_[o].distance(x).phi <= prm_.redetection_depth) continue;
+      added.push_back(make_contact(i, o, start, dt, nullptr));
+    }
+  }
+  if (added.empty()) return 0;
+  ++redetections_;
+  redetected_ += static_cast<int>(added.size());
+  contacts_.insert(contacts_.end(), added.begin(), added.end());
+  std::sort(contacts_.begin(), contacts_.end(), [no](const Contact& a, const Contact& b) {
+    return key(a.vertex, a.obstacle, no) < key(b.vertex, b.obstacle, no);
+  });
+  prepare_contacts(start);
+  return static_cast<int>(added.size());
 }
 
 double ObstacleConstraints::energy(const State& s) const {
@@ -168,6 +210,8 @@ void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
   const int no = static_cast<int>(obstacles_.size());
   const double delta = prm_.thickness;
   r.contacts = r.obstacle_contacts = static_cast<int>(contacts_.size());
+  r.redetections = redetections_;
+  r.redetected = redetected_;
   if (!contacts_.empty() && (!have_reactions_ || reactions_.size() != s.x.size())) {
     r.status = Status::invalid_input;
     r.message = "obstacle_constraints: no constraint reactions for this step (the integrator must call accept_reactions)";

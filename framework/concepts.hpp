@@ -115,6 +115,20 @@ concept HasConstraints = requires(C& c, const C& cc, const State& trial, Constra
   c.accept_reactions(force);   // constraint forces at the solution [N]
 };
 
+/// Optional hook of a constraint strategy: re-detection inside the step. The constraints
+/// are fixed at the start of the step from the positions and the prediction, so a vertex
+/// can cross an obstacle during the solve without any constraint seeing it (the end-of-step
+/// projection then moves it without a consistent velocity). After a converged solve the
+/// integrator calls `c.redetect(start, trial, dt)` with the start-of-step state and the
+/// solution positions; the strategy adds contacts for what the solution put inside and
+/// returns how many it added. When > 0 the integrator makes its iterate feasible again and
+/// continues the Newton iteration from it; the strategy bounds the number of rounds (it
+/// returns 0 once its budget for the step is spent).
+template <class C>
+concept HasRedetection = HasConstraints<C> && requires(C& c, const State& start, const State& trial, double dt) {
+  { c.redetect(start, trial, dt) } -> std::same_as<int>;
+};
+
 /// Optional hook of a contact strategy whose Hessian couples vertices that change from step
 /// to step (e.g. cloth-cloth repulsion springs): after `begin_step`, `c.update_pattern(plan)`
 /// replaces the elements of its own groups (`AssemblyPlan::replace_group`) and returns true

@@ -130,6 +130,7 @@ Json to_json(const ContactReport& r) {
   put("projected", r.projected);
   put("max_penetration", r.max_penetration);
   put("solve_penetration", r.solve_penetration);
+  put("redetected", r.redetected);
   put("springs", r.springs);
   put("pattern_updates", r.pattern_updates);
   put("gs_sweeps", r.gs_sweeps);

@@ -96,6 +96,7 @@ struct ContactReport {
   int sticking = 0;            ///< contacts held by static friction (3D constraints) during the step
   int projected = 0;           ///< vertices projected onto an obstacle's thickness surface after the solve
   double solve_penetration = 0;  ///< [m] largest depth below the contact thickness after the solve, before the projection
+  int redetected = 0;          ///< contacts added by the re-detections of the step (obstacle constraints: vertices the solve put inside; see `redetections`)
   // Counters of the implicit contact strategy (contact/implicit_contact.hpp).
   int springs = 0;             ///< cloth-cloth repulsion springs of the step (pairs within the thickness at the start or the prediction)
   int pattern_updates = 0;     ///< 1 when the springs changed the matrix pattern this step (new symbolic analysis)
@@ -113,7 +114,7 @@ struct ContactReport {
   int capped_groups = 0;       ///< groups that stopped at the Newton cap above the stretch tolerance
   int stretched_groups = 0;    ///< groups whose constrained Newton converged (the iterate stopped moving) with a rod above the stretch tolerance
   double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
-  int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again)
+  int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again); obstacle constraints: rounds in which the converged solve left vertices inside and was continued with their contacts
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations
   int contact_fallbacks = 0;   ///< `contact.solver = newton`: steps taken by its fallbacks (damped least squares, Gauss-Seidel) instead of Newton
   int damped_steps = 0;        ///< ADONIS, staggered projections: rod steps of the constrained Newton iteration cut by its strain trust region (contact.limit_stretch)
@@ -156,6 +157,7 @@ struct ContactReport {
     stretched_groups += end.stretched_groups;
     max_stretch = end.max_stretch;
     redetections += end.redetections;
+    redetected += end.redetected;
     contact_newton += end.contact_newton;
     contact_fallbacks += end.contact_fallbacks;
     damped_steps += end.damped_steps;

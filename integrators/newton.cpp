@@ -255,6 +255,10 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
     if (std::isfinite(e_trial) && rho > 1e-4) {
       d = trial;
       e = e_trial;
+      if (problem.make_feasible(d)) {
+        e = problem.potential(d);
+        if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the constraint projection left the model's domain");
+      }
       problem.gradient(d, f);
       r = problem.norm(f);
       rec.step_length = 1.0;
@@ -373,6 +377,10 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     d += ls.step * dir;
     const double decrease = e - ls.value;
     e = ls.value;
+    if (problem.make_feasible(d)) {
+      e = problem.potential(d);
+      if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the constraint projection left the model's domain");
+    }
     problem.gradient(d, f);
     r = problem.norm(f);
     nr.history.push_back(rec);
@@ -458,6 +466,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
     const double full_step = dir.cwiseAbs().maxCoeff();
     nr.history.back().step_norm = ls.step * full_step;
     d += ls.step * dir;
+    problem.make_feasible(d);
     problem.gradient(d, f);
     const double decrease = merit - 0.5 * f.squaredNorm();
     merit = 0.5 * f.squaredNorm();

@@ -180,13 +180,31 @@ class StepSystem final : public NewtonProblem {
                                          &p_.matrix, p_.dt});
     }
   }
+  /// Hands a strategy that re-detects (`HasRedetection`) the start state and the positions
+  /// x_k + d; returns the number of contacts it added (0: none, or no re-detection).
+  int redetect(const Eigen::VectorXd& d) {
+    if constexpr (HasRedetection<C>) {
+      trial_.x = x0_ + d;
+      return contact_.redetect(p_.state, trial_, p_.dt);
+    } else {
+      return 0;
+    }
+  }
   /// d += z, the targets of the contact constraints at x_k + d: the iterate then meets
-  /// them (exactly for the analytic obstacles). No-op without constraints.
-  void make_feasible(Eigen::VectorXd& d) {
+  /// them (exactly for the analytic obstacles). Returns whether d changed; no-op without
+  /// constraints. Called at the start of the step and after every accepted Newton update.
+  bool make_feasible(Eigen::VectorXd& d) override {
     if constexpr (constrained) {
       trial_.x = x0_ + d;
       contact_.constraints(trial_, filter_);
-      if (!filter_.empty()) d += filter_.target();
+      if (filter_.empty()) return false;
+      const Eigen::VectorXd& z = filter_.target();
+      if (!(z.cwiseAbs().maxCoeff() > 0)) return false;
+      d += z;
+      return true;
+    } else {
+      (void)d;
+      return false;
     }
   }
   /// At the accepted d: hands the strategy the constraint forces (I - S) f(d) / dt^2 [N],
@@ -302,7 +320,20 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
     initial_displacement(p, InitialGuess::zero, d);
     system.make_feasible(d);
   }
-  const NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
+  NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
+  if constexpr (HasRedetection<C>) {
+    // Contacts the converged solution crossed: continue the iteration with them (the
+    // strategy bounds the rounds). The report sums the iterations of every round and keeps
+    // the first round's initial residual; the tolerance is the first round's, absolute.
+    while (f.status == Status::success && system.redetect(d) > 0) {
+      const NewtonReport first = rep.newton;
+      system.make_feasible(d);
+      f = solve(system, d, first.tolerance, rep);
+      rep.newton.iterations += first.iterations;
+      rep.newton.initial_residual = first.initial_residual;
+      rep.newton.round_off_steps += first.round_off_steps;
+    }
+  }
   if (f.status == Status::success) {
     system.report_reactions(d);
     system.report_system(d);
