@@ -243,6 +243,7 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
     problem.multiply(p, Kp);
     const double predicted = -(f.dot(p) + 0.5 * p.dot(Kp));
     trial = d + p;
+    problem.make_feasible(trial);  // the model is judged on the constraints (see minimize)
     const double e_trial = problem.potential(trial);
     const double actual = e - e_trial;
     const double rho = predicted > 0 ? actual / predicted : -1.0;
@@ -326,8 +327,14 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     LineSearchResult ls;
     {
       ScopedTimer t(times, Stage::line_search);
+      // Trials are made feasible before they are judged: the line search follows the arc
+      // the projection bends the straight step into. Judged on the straight step, a vertex
+      // held on a curved obstacle (a rounded box edge) by a force that K does not see (the
+      // constraint's curvature times its reaction) is moved across the edge and projected
+      // back to where it came from: the iteration cycles between two iterates.
       auto phi = [&](double step) {
         trial = d + step * dir;
+        problem.make_feasible(trial);
         return problem.potential(trial);
       };
       // phi and phi' = f(d + s p)^T p: one energy and one gradient per trial.
@@ -449,6 +456,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
       ScopedTimer t(times, Stage::line_search);
       auto phi = [&](double step) {
         trial = d + step * dir;
+        problem.make_feasible(trial);
         problem.gradient(trial, ft);
         const double m = 0.5 * ft.squaredNorm();
         return std::isfinite(m) ? m : std::numeric_limits<double>::infinity();
