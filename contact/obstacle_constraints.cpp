@@ -3,6 +3,7 @@
 #include <Eigen/QR>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "framework/error.hpp"
@@ -177,16 +178,49 @@ void ObstacleConstraints::add_gradient(const State&, Eigen::VectorXd& g) const {
     if (c.mode == Mode::slide) g.segment<3>(3 * c.vertex) -= c.friction;
 }
 
+unsigned ObstacleConstraints::effective(size_t a, size_t b, const Eigen::Vector3d& x) const {
+  const size_t n = b - a;
+  if (n == 1) return 1u;
+  if (n > 32) return ~0u;  // (more obstacles at one vertex than the mask holds: all of them)
+  // Closest obstacle first (ties by obstacle index: contacts_ is sorted by it).
+  std::array<std::pair<double, int>, 32> order;
+  std::array<Distance, 32> dist;
+  for (size_t c = 0; c < n; ++c) {
+    dist[c] = end_[contacts_[a + c].obstacle].distance(x);
+    order[c] = {dist[c].phi, static_cast<int>(c)};
+  }
+  std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n));
+  const double tol = std::max(1e-9, 1e-6 * prm_.thickness);
+  unsigned kept = 0;
+  for (size_t r = 0; r < n; ++r) {
+    const int c = order[r].second;
+    const Eigen::Vector3d closest = x - dist[c].phi * dist[c].grad;  // on obstacle c's surface
+    bool inner = false;
+    for (size_t q = 0; q < n && !inner; ++q)
+      if (kept >> q & 1u) inner = end_[contacts_[a + q].obstacle].distance(closest).phi <= tol;
+    if (!inner) kept |= 1u << c;
+  }
+  return kept;
+}
+
 void ObstacleConstraints::constraints(const State& trial, ConstraintSet& out) const {
   out.reset(trial.num_vertices());
-  for (const Contact& c : contacts_) {
-    const Eigen::Vector3d x = trial.position(c.vertex);
-    if (c.mode == Mode::stick) {
-      out.fix(c.vertex, c.anchor - x);
-    } else {
-      const Distance d = end_[c.obstacle].distance(x);
-      out.add_direction(c.vertex, d.grad, prm_.thickness - d.phi);
+  for (size_t a = 0; a < contacts_.size();) {
+    size_t b = a + 1;
+    while (b < contacts_.size() && contacts_[b].vertex == contacts_[a].vertex) ++b;
+    const Eigen::Vector3d x = trial.position(contacts_[a].vertex);
+    const unsigned keep = effective(a, b, x);
+    for (size_t k = a; k < b; ++k) {
+      const Contact& c = contacts_[k];
+      if (!(keep >> (k - a) & 1u)) continue;
+      if (c.mode == Mode::stick) {
+        out.fix(c.vertex, c.anchor - x);
+      } else {
+        const Distance d = end_[c.obstacle].distance(x);
+        out.add_direction(c.vertex, d.grad, prm_.thickness - d.phi);
+      }
     }
+    a = b;
   }
 }
 
@@ -228,14 +262,21 @@ void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
     const Eigen::Vector3d R = reactions_.segment<3>(3 * i);
     auto x = s.position(i);
     auto v = s.velocity(i);
-    // Normal reactions: R_i = sum_c lambda_c n_c (least squares over the contacts of i).
+    // Normal reactions: R_i = sum_c lambda_c n_c (least squares over the effective contacts
+    // of i; an inner surface of the obstacles' union carries none and is released).
+    const unsigned keep = effective(a, b, x);
     Eigen::Matrix3Xd N(3, static_cast<Eigen::Index>(b - a));
-    for (size_t c = a; c < b; ++c) N.col(static_cast<Eigen::Index>(c - a)) = end_[contacts_[c].obstacle].distance(x).grad;
+    for (size_t c = a; c < b; ++c)
+      N.col(static_cast<Eigen::Index>(c - a)) = (keep >> (c - a) & 1u) ? end_[contacts_[c].obstacle].distance(x).grad : Eigen::Vector3d::Zero();
     Eigen::VectorXd lambda(N.cols());
     if (N.cols() == 1) lambda[0] = N.col(0).dot(R);
     else lambda = N.completeOrthogonalDecomposition().solve(R);
     for (size_t c = a; c < b; ++c) {
       Contact& k = contacts_[c];
+      if (!(keep >> (c - a) & 1u)) {
+        released_.push_back(key(k.vertex, k.obstacle, no));
+        continue;
+      }
       if (k.mode == Mode::stick) ++r.sticking;
       const Eigen::Vector3d n = N.col(static_cast<Eigen::Index>(c - a));
       const double ln = lambda[static_cast<Eigen::Index>(c - a)];

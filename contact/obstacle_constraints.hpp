@@ -83,6 +83,17 @@
 ///     thickness surface onto it (vertices that were not in contact), zeroing its
 ///     approaching relative normal velocity.
 ///
+/// **Several obstacles at a vertex.** Obstacles that touch (the box with a hole of
+/// dropHorizontal / dropVertical is four boxes sharing faces) make a vertex near a seam a
+/// contact of both, although their union is flat there: the second box's rounded edge,
+/// tangent to the first box's thickness surface along the seam, pins the vertex onto the
+/// seam line (two nearly parallel constraints, an ill-conditioned projection that stalled
+/// Newton on a 41 x 41 dropVertical). Per iterate the contacts of a vertex are taken
+/// closest obstacle first, and one whose closest point on its obstacle lies in (or on) the
+/// solid of an obstacle taken before it is an inner surface of the union and skipped
+/// (`effective`); at the end of the step such a contact is released. Concave corners (the
+/// hole's walls) keep both constraints: each wall's closest point lies outside the other.
+///
 /// Rigid motion of an obstacle between t_k and t_{k+1}: T(x) = R_{k+1} R_k^T (x - c_k) +
 /// c_{k+1}; its velocity at x at the end of the step: v_o(x) = (x - T^-1(x)) / dt.
 #include <Eigen/Core>
@@ -206,6 +217,9 @@ class ObstacleConstraints {
   /// normal constraints only; anchors of sticking contacts, kinetic forces of sliding ones.
   /// Returns the number sticking.
   int prepare_contacts(const State& s);
+  /// Which of the contacts [a, b) of one vertex (sorted, same vertex) constrain it at x, as
+  /// a bit mask over c - a (file comment, "Several obstacles at a vertex").
+  unsigned effective(size_t a, size_t b, const Eigen::Vector3d& x) const;
   Eigen::Vector3d carry(int o, const Eigen::Vector3d& x) const;      // T(x)
   Eigen::Vector3d obstacle_velocity(int o, const Eigen::Vector3d& x, double dt) const;  // v_o(x) at the end
   static long long key(int vertex, int obstacle, int num_obstacles) {
