@@ -116,7 +116,9 @@ class ImplicitContact {
   void constraints(const State& trial, ConstraintSet& out) const { obstacles_.constraints(trial, out); }
   void accept_reactions(const Eigen::VectorXd& force) { obstacles_.accept_reactions(force); }
   /// Obstacle re-detection inside the step (ObstacleConstraints::redetect).
-  int redetect(const State& start, const State& trial, double dt) { return obstacles_.redetect(start, trial, dt); }
+  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices) {
+    return obstacles_.redetect(start, trial, dt, vertices);
+  }
   ContactReport end_step(State& s, double dt);
 
   const Params& params() const { return prm_; }

@@ -139,7 +139,7 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
   return r;
 }
 
-int ObstacleConstraints::redetect(const State& start, const State& trial, double dt) {
+int ObstacleConstraints::redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices) {
   if (redetections_ >= prm_.max_redetections || obstacles_.empty()) return 0;
   const int no = static_cast<int>(obstacles_.size());
   std::vector<Contact> added;
@@ -156,6 +156,8 @@ int ObstacleConstraints::redetect(const State& start, const State& trial, double
     }
   }
   if (added.empty()) return 0;
+  for (const Contact& c : added)
+    if (vertices.empty() || vertices.back() != c.vertex) vertices.push_back(c.vertex);
   ++redetections_;
   redetected_ += static_cast<int>(added.size());
   contacts_.insert(contacts_.end(), added.begin(), added.end());

@@ -187,11 +187,14 @@ class ObstacleConstraints {
   /// surface of an obstacle it has no contact with gets that contact, made as a new
   /// contact of the step from the start-of-step state `start` (impact cone, anchor), and
   /// the step's constraints are updated. Returns the number added; 0 when none, or once
-  /// `max_redetections` rounds of this step found some. The integrator then continues the
-  /// solve with the new constraints: a vertex that crossed during the solve is brought back
-  /// by the solve, with the velocity and the reaction that go with it, instead of the
-  /// end-of-step projection moving it alone.
-  int redetect(const State& start, const State& trial, double dt);
+  /// `max_redetections` rounds of this step found some; their vertices are appended to
+  /// `vertices`. The integrator then moves them back to its initial guess (outside the
+  /// obstacle: no contact was made there) and continues the solve with the new
+  /// constraints: a vertex that crossed during the solve is brought back by the solve, with
+  /// the velocity and the reaction that go with it, onto the surface it approached, instead
+  /// of the end-of-step projection moving it alone (from deep inside, the nearest surface of
+  /// a box can be a side face, or a face shared with another box).
+  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices);
 
   /// #V*3 forces the constraints exert at the accepted solution [N] (zero off the
   /// constrained directions); read by the next `end_step`.

@@ -120,13 +120,16 @@ concept HasConstraints = requires(C& c, const C& cc, const State& trial, Constra
 /// can cross an obstacle during the solve without any constraint seeing it (the end-of-step
 /// projection then moves it without a consistent velocity). After a converged solve the
 /// integrator calls `c.redetect(start, trial, dt)` with the start-of-step state and the
-/// solution positions; the strategy adds contacts for what the solution put inside and
-/// returns how many it added. When > 0 the integrator makes its iterate feasible again and
-/// continues the Newton iteration from it; the strategy bounds the number of rounds (it
-/// returns 0 once its budget for the step is spent).
+/// solution positions; the strategy adds contacts for what the solution put inside, appends
+/// their vertices to `vertices` and returns how many contacts it added. When > 0 the
+/// integrator moves those vertices back to where its initial guess had them (outside: they
+/// were not in contact there), makes the iterate feasible and continues the Newton
+/// iteration from it; the strategy bounds the number of rounds (it returns 0 once its
+/// budget for the step is spent).
 template <class C>
-concept HasRedetection = HasConstraints<C> && requires(C& c, const State& start, const State& trial, double dt) {
-  { c.redetect(start, trial, dt) } -> std::same_as<int>;
+concept HasRedetection = HasConstraints<C> && requires(C& c, const State& start, const State& trial, double dt,
+                                                       std::vector<int>& vertices) {
+  { c.redetect(start, trial, dt, vertices) } -> std::same_as<int>;
 };
 
 /// Optional hook of a contact strategy whose Hessian couples vertices that change from step

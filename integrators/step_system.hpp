@@ -181,12 +181,18 @@ class StepSystem final : public NewtonProblem {
     }
   }
   /// Hands a strategy that re-detects (`HasRedetection`) the start state and the positions
-  /// x_k + d; returns the number of contacts it added (0: none, or no re-detection).
-  int redetect(const Eigen::VectorXd& d) {
+  /// x_k + d; returns the number of contacts it added (0: none, or no re-detection) and
+  /// sets the displacement of their vertices back to the initial guess `d0`.
+  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0) {
     if constexpr (HasRedetection<C>) {
       trial_.x = x0_ + d;
-      return contact_.redetect(p_.state, trial_, p_.dt);
+      redetected_.clear();
+      const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_);
+      for (int i : redetected_) d.segment<3>(3 * i) = d0.segment<3>(3 * i);
+      return added;
     } else {
+      (void)d;
+      (void)d0;
       return 0;
     }
   }
@@ -259,6 +265,7 @@ class StepSystem final : public NewtonProblem {
   std::vector<unsigned char> fixed_;  // pinned, scripted, or fully constrained by contact
   std::vector<int> saved_rows_;       // rows of fully constrained free vertices, before the filter
   std::vector<double> saved_blocks_;  // their blocks, 9 per pattern entry, row by row
+  std::vector<int> redetected_;       // vertices of the contacts the last re-detection added
   Eigen::VectorXd f_;
   mutable Eigen::VectorXd tmp_;
 };
@@ -320,12 +327,15 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
     initial_displacement(p, InitialGuess::zero, d);
     system.make_feasible(d);
   }
-  NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
+  NewtonFailure f;
   if constexpr (HasRedetection<C>) {
-    // Contacts the converged solution crossed: continue the iteration with them (the
-    // strategy bounds the rounds). The report sums the iterations of every round and keeps
-    // the first round's initial residual; the tolerance is the first round's, absolute.
-    while (f.status == Status::success && system.redetect(d) > 0) {
+    const Eigen::VectorXd d0 = d;  // the initial guess (feasible for the start-of-step contacts)
+    f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
+    // Contacts the converged solution crossed: their vertices back to the initial guess,
+    // then continue the iteration with them (the strategy bounds the rounds). The report
+    // sums the iterations of every round and keeps the first round's initial residual; the
+    // tolerance is the first round's, absolute.
+    while (f.status == Status::success && system.redetect(d, d0) > 0) {
       const NewtonReport first = rep.newton;
       system.make_feasible(d);
       f = solve(system, d, first.tolerance, rep);
@@ -333,6 +343,8 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
       rep.newton.initial_residual = first.initial_residual;
       rep.newton.round_off_steps += first.round_off_steps;
     }
+  } else {
+    f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   }
   if (f.status == Status::success) {
     system.report_reactions(d);

@@ -72,6 +72,17 @@ struct Outcome {
   Eigen::Vector2d x;
 };
 
+// Exact Hessian, the absolute tolerance of `run` only.
+NewtonParams exact_newton(int max_iterations) {
+  NewtonParams prm;
+  prm.hessian = HessianChoice::exact;
+  prm.relative_tolerance = 0;
+  prm.max_iterations = max_iterations;
+  return prm;
+}
+
+const Eigen::Vector2d solution = Eigen::Vector2d(-2, 3).normalized();  // t / |t| of `run`
+
 Outcome run(bool project, NewtonParams prm, bool lagrangian = true) {
   const Eigen::Vector2d x0(1, 0), target(-2, 3);
   PulledOnCircle q(x0, target, project, lagrangian);
@@ -89,11 +100,7 @@ Outcome run(bool project, NewtonParams prm, bool lagrangian = true) {
 
 TEST_SUITE("integrators") {
   TEST_CASE("newton: iterates are made feasible again, so a constraint that pulls does not stall the line search") {
-    NewtonParams prm;
-    prm.hessian = HessianChoice::exact;
-    prm.relative_tolerance = 0;
-    prm.max_iterations = 60;
-    const Eigen::Vector2d solution = Eigen::Vector2d(-2, 3).normalized();
+    NewtonParams prm = exact_newton(60);
     for (auto search : {LineSearchKind::backtracking, LineSearchKind::more_thuente}) {
       prm.line_search = search;
       CAPTURE(static_cast<int>(search));
@@ -112,11 +119,7 @@ TEST_SUITE("integrators") {
   }
 
   TEST_CASE("newton: trials are judged made feasible, so a Newton matrix blind to the constraint's curvature does not cycle") {
-    NewtonParams prm;
-    prm.hessian = HessianChoice::exact;
-    prm.relative_tolerance = 0;
-    prm.max_iterations = 100;
-    const Eigen::Vector2d solution = Eigen::Vector2d(-2, 3).normalized();
+    NewtonParams prm = exact_newton(100);
     for (auto search : {LineSearchKind::hager_zhang, LineSearchKind::more_thuente, LineSearchKind::backtracking}) {
       prm.line_search = search;
       CAPTURE(static_cast<int>(search));
