@@ -308,6 +308,46 @@ TEST_SUITE("slow") {
     CHECK(st.proximity + st.ccd_hits > 0);
   }
 
+  TEST_CASE("contact scenes slow: dropVertical with contact constraints and SA+PPCG runs to the end without intersection or NaN") {
+    // The constraint strategy (obstacles as equality constraints in the implicit solve,
+    // re-detected when the solve crosses them; repulsion springs; impulse failsafe) on the
+    // 41 x 41 sheet dropped 3 mm above the box. It used to stop at step 45 (Newton stalled on
+    // an infeasible iterate), then at 346 (a two-cycle over a rounded box edge), 274 (a vertex
+    // pinned onto the seam of two boxes) and 214 (a deep crossing next to a shared face);
+    // docs/contact.md. Projection tolerance 0: whatever the solve leaves below the thickness
+    // surface is projected, so the check of run_checked (h (1 - 1e-9)) applies unchanged.
+    // One step (195) still fails at dt, on a vertex that slides around one box's edge into
+    // its neighbour (a known limit of touching analytic obstacles, docs/contact.md) and is
+    // taken as two halves: time.max_subdivisions = 3, and at most 3 subdivided steps allowed.
+    OneThread one;
+    const Scene scene = load_scene(scene_file("drop_vertical.json"),
+                                   {"combo=cloth_ip_constraints_sa_ppcg", "cloths.0.mesh.center=[0,0,0.503]",
+                                    "cloths.0.mesh.resolution=[41,41]", "contact.projection_tolerance=0",
+                                    "time.max_subdivisions=3"});
+    auto sim = make_simulator(scene);
+    long long newton = 0, redetected = 0;
+    int newton_max = 0, redetections = 0, subdivided = 0;
+    double solve_penetration = 0;
+    const RunStats st = run_checked(*sim, contact_thickness(*sim), 1 << 30, [&](const AnySimulator&, const StepReport& r) {
+      newton += r.newton.iterations;
+      newton_max = std::max(newton_max, r.newton.iterations);
+      redetections += r.contact.redetections;
+      redetected += r.contact.redetected;
+      solve_penetration = std::max(solve_penetration, r.contact.solve_penetration);
+      subdivided += r.substeps > 1;
+    });
+    CHECK(st.steps == 360);
+    CHECK(subdivided <= 3);
+    MESSAGE("dropVertical 41x41, constraints + SA+PPCG: " << st.contacts / st.steps << " contacts per step, " << redetections
+                                                          << " re-detections adding " << redetected << " contacts, deepest solve "
+                                                          << solve_penetration << " m; Newton " << static_cast<double>(newton) / st.steps
+                                                          << " per step, " << newton_max << " at most; " << subdivided
+                                                          << " steps taken as substeps");
+    CHECK(redetections > 0);                // the re-detection acted ...
+    CHECK(solve_penetration < 1e-3);        // ... and no solve went a millimetre into the box (8 mm before it)
+    CHECK(st.proximity + st.ccd_hits > 0);  // it folded onto itself
+  }
+
   TEST_CASE("contact scenes slow: the drape at several of its 36 resolutions") {
     OneThread one;
     for (int n : {11, 21, 31}) {
