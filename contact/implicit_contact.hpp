@@ -85,9 +85,8 @@ class ImplicitContact {
       Checker c = Impulse::Params::validate(p.impulse);
       c.require(p.margin >= 0, "margin", p.margin, ">= 0")
           .require(p.projection_tolerance >= 0, "projection_tolerance", p.projection_tolerance, ">= 0")
-          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0")
-          .require(p.redetection_depth >= 0, "redetection_depth", p.redetection_depth, ">= 0")
-          .require(p.max_redetections >= 0 && p.max_redetections <= 100, "max_redetections", p.max_redetections, "in [0, 100]");
+          .require(p.spring_stiffness > 0, "spring_stiffness", p.spring_stiffness, "> 0");
+      ObstacleConstraints::Params::validate_redetection(c, p.redetection_depth, p.max_redetections);
       return c;
     }
   };

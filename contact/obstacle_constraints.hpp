@@ -20,9 +20,10 @@
 /// through the box edge) with no constraint to stop it. After a converged solve, every
 /// free vertex deeper than `redetection_depth` below the thickness surface of an obstacle it
 /// has no contact with gets that contact (a new contact, friction mode from the impact cone
-/// at the start of the step), and the Newton iterations (IncrementalPotential,
-/// BackwardEulerRoot) continue from the solution made feasible, up to `max_redetections`
-/// rounds per step; what is left is projected at the end of the step as before. The
+/// at the start of the step), its vertex goes back to the integrator's initial guess, and
+/// the Newton iterations (IncrementalPotential, BackwardEulerRoot) continue from there made
+/// feasible, up to `max_redetections` rounds per step; what is left is projected at the end
+/// of the step as before. The
 /// linearly implicit integrator keeps BW98's single solve (no re-detection). Without it a
 /// 41 x 41 dropVertical projected 11-16 vertices by up to 8 mm per step before it failed
 /// (docs/contact.md).
@@ -141,10 +142,13 @@ class ObstacleConstraints {
       Checker c("contact");
       c.require(p.thickness >= 0, "thickness", p.thickness, ">= 0")
           .require(p.margin >= 0, "margin", p.margin, ">= 0")
-          .require(p.projection_tolerance >= 0, "projection_tolerance", p.projection_tolerance, ">= 0")
-          .require(p.redetection_depth >= 0, "redetection_depth", p.redetection_depth, ">= 0")
-          .require(p.max_redetections >= 0 && p.max_redetections <= 100, "max_redetections", p.max_redetections, "in [0, 100]");
+          .require(p.projection_tolerance >= 0, "projection_tolerance", p.projection_tolerance, ">= 0");
+      validate_redetection(c, p.redetection_depth, p.max_redetections);
       return c;
+    }
+    static void validate_redetection(Checker& c, double depth, int rounds) {
+      c.require(depth >= 0, "redetection_depth", depth, ">= 0")
+          .require(rounds >= 0 && rounds <= 100, "max_redetections", rounds, "in [0, 100]");
     }
   };
 

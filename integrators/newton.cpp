@@ -254,12 +254,8 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
     else if (rho > 0.75 && pnorm >= 0.99 * radius) radius = std::min(2 * radius, max_radius);
     nr.iterations = it + 1;
     if (std::isfinite(e_trial) && rho > 1e-4) {
-      d = trial;
+      d = trial;  // made feasible above
       e = e_trial;
-      if (problem.make_feasible(d)) {
-        e = problem.potential(d);
-        if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the constraint projection left the model's domain");
-      }
       problem.gradient(d, f);
       r = problem.norm(f);
       rec.step_length = 1.0;
@@ -382,12 +378,9 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     const double full_step = dir.cwiseAbs().maxCoeff();
     rec.step_norm = ls.step * full_step;
     d += ls.step * dir;
+    problem.make_feasible(d);  // the point the line search judged: ls.value is E there
     const double decrease = e - ls.value;
     e = ls.value;
-    if (problem.make_feasible(d)) {
-      e = problem.potential(d);
-      if (!std::isfinite(e)) return fail("energy", Status::numerical_issue, "the constraint projection left the model's domain");
-    }
     problem.gradient(d, f);
     r = problem.norm(f);
     nr.history.push_back(rec);
@@ -474,7 +467,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
     const double full_step = dir.cwiseAbs().maxCoeff();
     nr.history.back().step_norm = ls.step * full_step;
     d += ls.step * dir;
-    problem.make_feasible(d);
+    problem.make_feasible(d);  // the point the line search judged
     problem.gradient(d, f);
     const double decrease = merit - 0.5 * f.squaredNorm();
     merit = 0.5 * f.squaredNorm();

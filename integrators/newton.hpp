@@ -49,8 +49,9 @@ class NewtonProblem {
   /// u^T M~ v (the metric of trust regions).
   virtual double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const = 0;
   /// Moves d onto the problem's equality constraints, if it has any, and returns whether d
-  /// changed. The iterations call it after every accepted update, so that every Newton
-  /// direction starts from a feasible iterate: from an infeasible one the direction also
+  /// changed. The iterations call it on every line-search trial and accepted update, so that
+  /// trials are judged on the constraints and every Newton direction starts from a feasible
+  /// iterate: from an infeasible one the direction also
   /// restores the constraints, which pushes pressed vertices out against their reaction
   /// and can ascend E by more than the rest descends it (the line search then cuts the step
   /// to nothing and the iteration stalls; a partial step or a curved obstacle leaves such

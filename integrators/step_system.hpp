@@ -181,20 +181,16 @@ class StepSystem final : public NewtonProblem {
     }
   }
   /// Hands a strategy that re-detects (`HasRedetection`) the start state and the positions
-  /// x_k + d; returns the number of contacts it added (0: none, or no re-detection) and
-  /// sets the displacement of their vertices back to the initial guess `d0`.
-  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0) {
-    if constexpr (HasRedetection<C>) {
-      trial_.x = x0_ + d;
-      redetected_.clear();
-      const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_);
-      for (int i : redetected_) d.segment<3>(3 * i) = d0.segment<3>(3 * i);
-      return added;
-    } else {
-      (void)d;
-      (void)d0;
-      return 0;
-    }
+  /// x_k + d; returns the number of contacts it added (0: none) and sets the displacement
+  /// of their vertices back to the initial guess `d0`.
+  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0)
+    requires HasRedetection<C>
+  {
+    trial_.x = x0_ + d;
+    redetected_.clear();
+    const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_);
+    for (int i : redetected_) d.segment<3>(3 * i) = d0.segment<3>(3 * i);
+    return added;
   }
   /// d += z, the targets of the contact constraints at x_k + d: the iterate then meets
   /// them (exactly for the analytic obstacles). Returns whether d changed; no-op without
@@ -327,10 +323,10 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
     initial_displacement(p, InitialGuess::zero, d);
     system.make_feasible(d);
   }
-  NewtonFailure f;
+  [[maybe_unused]] Eigen::VectorXd d0;  // the initial guess (feasible for the start-of-step contacts)
+  if constexpr (HasRedetection<C>) d0 = d;
+  NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   if constexpr (HasRedetection<C>) {
-    const Eigen::VectorXd d0 = d;  // the initial guess (feasible for the start-of-step contacts)
-    f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
     // Contacts the converged solution crossed: their vertices back to the initial guess,
     // then continue the iteration with them (the strategy bounds the rounds). The report
     // sums the iterations of every round and keeps the first round's initial residual; the
@@ -343,8 +339,6 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
       rep.newton.initial_residual = first.initial_residual;
       rep.newton.round_off_steps += first.round_off_steps;
     }
-  } else {
-    f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   }
   if (f.status == Status::success) {
     system.report_reactions(d);
