@@ -24,6 +24,7 @@ ObstacleConstraints::Params obstacle_params(const ImplicitContact::Params& p) {
   o.projection_tolerance = p.projection_tolerance;
   o.redetection_depth = p.redetection_depth;
   o.max_redetections = p.max_redetections;
+  o.redetect_iterates = p.redetect_iterates;
   return o;
 }
 

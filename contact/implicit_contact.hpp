@@ -70,6 +70,7 @@ class ImplicitContact {
     double spring_stiffness = 100;      ///< s > 0: spring stiffness k = s m_eff / dt^2
     double redetection_depth = 1e-4;    ///< [m] >= 0: obstacle re-detection inside the step (obstacle_constraints.hpp)
     int max_redetections = 4;           ///< re-detection rounds per step (0: off)
+    bool redetect_iterates = false;     ///< also re-detect at every accepted Newton iterate (else at converged solutions only)
     template <class V>
     void visit(V& v) {
       impulse.visit(v);
@@ -79,7 +80,7 @@ class ImplicitContact {
               {Unit::length, Range::ge(0), "after the solve, vertices deeper than this below an obstacle's thickness surface are projected onto it"});
       v.field("spring_stiffness", spring_stiffness,
               {Unit::none, Range::gt(0), "cloth-cloth repulsion springs: k = s m_eff / dt^2 (a predicted violation shrinks to 1 / (1 + s))"});
-      ObstacleConstraints::Params::visit_redetection(v, redetection_depth, max_redetections);
+      ObstacleConstraints::Params::visit_redetection(v, redetection_depth, max_redetections, redetect_iterates);
     }
     static Checker validate(const Params& p) {
       Checker c = Impulse::Params::validate(p.impulse);
@@ -115,8 +116,8 @@ class ImplicitContact {
   void constraints(const State& trial, ConstraintSet& out) const { obstacles_.constraints(trial, out); }
   void accept_reactions(const Eigen::VectorXd& force) { obstacles_.accept_reactions(force); }
   /// Obstacle re-detection inside the step (ObstacleConstraints::redetect).
-  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices) {
-    return obstacles_.redetect(start, trial, dt, vertices);
+  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices, bool converged) {
+    return obstacles_.redetect(start, trial, dt, vertices, converged);
   }
   ContactReport end_step(State& s, double dt);
 

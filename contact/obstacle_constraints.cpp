@@ -11,6 +11,7 @@
 
 namespace weft::contact {
 
+
 ObstacleConstraints::ObstacleConstraints(const Scene& scene, const Params& prm)
     : obstacles_(scene.spec.obstacles), mass_(scene.lumped_masses()), prm_(prm) {
   Params::validate(prm).throw_if_failed(fmt::format("{}: invalid contact configuration:", scene.path));
@@ -123,8 +124,15 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
       const Distance d = end_[o].distance(x);
       const double vn = d.grad.dot(v - (carry(o, x) - x) / dt);
       // In contact: the predicted position within reach of the obstacle where it will be,
-      // or the position within reach and not separating.
-      if (end_[o].distance(xp).phi > reach && !(d.phi <= reach && vn * dt <= prm_.margin)) {
+      // or the position within reach and not separating by more than the re-detection depth
+      // over the step (the tolerance the step accepts the other way). A vertex sliding over a
+      // curved obstacle has the outward normal velocity of the chord, dt |v_t|^2 / (2 R),
+      // when the failsafe takes v = (x1 - x0) / dt: 7e-4 m/s at 0.3 m/s on the drape's
+      // sphere. With the margin alone (1e-8 m) as the slack, hundreds of resting contacts
+      // were dropped every step and re-detected after the solve had carried their vertices
+      // into the sphere.
+      const double slack = std::max(prm_.margin, prm_.redetection_depth);
+      if (end_[o].distance(xp).phi > reach && !(d.phi <= reach && vn * dt <= slack)) {
         receded += kept;
         continue;
       }
@@ -139,8 +147,8 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
   return r;
 }
 
-int ObstacleConstraints::redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices) {
-  if (redetections_ >= prm_.max_redetections || obstacles_.empty()) return 0;
+int ObstacleConstraints::redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices, bool converged) {
+  if (redetections_ >= prm_.max_redetections || obstacles_.empty() || !(converged || prm_.redetect_iterates)) return 0;
   const int no = static_cast<int>(obstacles_.size());
   std::vector<Contact> added;
   size_t at = 0;
@@ -284,7 +292,7 @@ void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
       const double ln = lambda[static_cast<Eigen::Index>(c - a)];
       const double vn_end = n.dot(v - obstacle_velocity(k.obstacle, x, dt));
       if (!(ln > 0) && vn_end * dt >= -prm_.margin) {  // the constraint pulls: release (BW98)
-        released_.push_back(key(k.vertex, k.obstacle, no));
+              released_.push_back(key(k.vertex, k.obstacle, no));
         continue;
       }
       // (A vertex still approaching at the end of the step, e.g. one that reached the

@@ -17,13 +17,19 @@
 /// **Re-detection inside the step** (`redetect`, the `HasRedetection` hook). The set above
 /// is fixed from the start and the prediction x_i + dt v_i, which ignores the forces of
 /// the step: a vertex can cross an obstacle during the solve (gravity, a fold pushed
-/// through the box edge) with no constraint to stop it. After a converged solve, every
-/// free vertex deeper than `redetection_depth` below the thickness surface of an obstacle it
+/// through the box edge) with no constraint to stop it. After a converged solve (and, with
+/// `redetect_iterates`, at every accepted Newton iterate of the line-search Newton and of
+/// root finding), every free vertex deeper than `redetection_depth` below the thickness surface of an obstacle it
 /// has no contact with gets that contact (a new contact, friction mode from the impact cone
 /// at the start of the step), its vertex goes back to the integrator's initial guess, and
 /// the Newton iterations (IncrementalPotential, BackwardEulerRoot) continue from there made
 /// feasible, up to `max_redetections` rounds per step; what is left is projected at the end
-/// of the step as before. The
+/// of the step as before. Caught at the iterate that crosses, a contact does not cost the
+/// iterations of converging a solution that is then discarded for its vertices (the drape
+/// on the sphere at 41 x 41: 75 iterations before the converged-only re-detection of 146
+/// contacts at step 64, docs/contact.md); but a crossing of a transient iterate then adds
+/// a contact the solution would not have needed, so the step depends on the path of the
+/// iterates (root finding and minimisation no longer agree): off by default. The
 /// linearly implicit integrator keeps BW98's single solve (no re-detection). Without it a
 /// 41 x 41 dropVertical projected 11-16 vertices by up to 8 mm per step before it failed
 /// (docs/contact.md).
@@ -121,6 +127,7 @@ class ObstacleConstraints {
     double projection_tolerance = 1e-9;    ///< [m] >= 0: depth below delta left alone by the end-of-step projection
     double redetection_depth = 1e-4;       ///< [m] >= 0: a solution deeper than this below delta, where no contact was, is solved again
     int max_redetections = 4;              ///< re-detections per step (0: off, the contact set of the start of the step only)
+    bool redetect_iterates = false;        ///< also re-detect at every accepted Newton iterate (else at converged solutions only)
     template <class V>
     void visit(V& v) {
       v.field("thickness", thickness, {Unit::length, Range::ge(0), "contact thickness delta: the distance kept to obstacles"});
@@ -128,15 +135,18 @@ class ObstacleConstraints {
               {Unit::length, Range::ge(0), "a contact starts when the start or predicted position is within thickness + margin"});
       v.field("projection_tolerance", projection_tolerance,
               {Unit::length, Range::ge(0), "after the solve, vertices deeper than this below the thickness surface are projected onto it"});
-      visit_redetection(v, redetection_depth, max_redetections);
+      visit_redetection(v, redetection_depth, max_redetections, redetect_iterates);
     }
     template <class V>
-    static void visit_redetection(V& v, double& depth, int& rounds) {
+    static void visit_redetection(V& v, double& depth, int& rounds, bool& iterates) {
       v.field("redetection_depth", depth,
               {Unit::length, Range::ge(0),
                "a converged solve that leaves a vertex deeper than this below an obstacle's thickness surface, where the step had no contact, gets that contact and is solved again"});
       v.field("max_redetections", rounds,
               {Unit::none, Range::closed(0, 100), "re-detections (contacts added, solve continued) per step; 0: the contacts of the start of the step only"});
+      v.field("redetect_iterates", iterates,
+              {Unit::none, Range::any(),
+               "also re-detect at every accepted Newton iterate (a crossing is caught where it happens, but the contact set then depends on the iterates' path); else at converged solutions only"});
     }
     static Checker validate(const Params& p) {
       Checker c("contact");
@@ -187,7 +197,7 @@ class ObstacleConstraints {
   /// constraint per contact, or the full 3D constraint of a sticking one (file comment).
   void constraints(const State& trial, ConstraintSet& out) const;
   /// Re-detection (`HasRedetection`, framework/concepts.hpp): every free vertex that the
-  /// solution positions `trial` put deeper than `redetection_depth` below the thickness
+  /// solution positions (or a Newton iterate's) `trial` put deeper than `redetection_depth` below the thickness
   /// surface of an obstacle it has no contact with gets that contact, made as a new
   /// contact of the step from the start-of-step state `start` (impact cone, anchor), and
   /// the step's constraints are updated. Returns the number added; 0 when none, or once
@@ -198,7 +208,9 @@ class ObstacleConstraints {
   /// the velocity and the reaction that go with it, onto the surface it approached, instead
   /// of the end-of-step projection moving it alone (from deep inside, the nearest surface of
   /// a box can be a side face, or a face shared with another box).
-  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices);
+  /// `converged`: trial is a converged solution (else an intermediate Newton iterate, where
+  /// re-detection runs only with `redetect_iterates`).
+  int redetect(const State& start, const State& trial, double dt, std::vector<int>& vertices, bool converged);
 
   /// #V*3 forces the constraints exert at the accepted solution [N] (zero off the
   /// constrained directions); read by the next `end_step`.

@@ -118,9 +118,10 @@ concept HasConstraints = requires(C& c, const C& cc, const State& trial, Constra
 /// Optional hook of a constraint strategy: re-detection inside the step. The constraints
 /// are fixed at the start of the step from the positions and the prediction, so a vertex
 /// can cross an obstacle during the solve without any constraint seeing it (the end-of-step
-/// projection then moves it without a consistent velocity). After a converged solve the
-/// integrator calls `c.redetect(start, trial, dt)` with the start-of-step state and the
-/// solution positions; the strategy adds contacts for what the solution put inside, appends
+/// projection then moves it without a consistent velocity). After every accepted Newton
+/// update (`converged` false) and after a converged solve (`converged` true) the integrator
+/// calls `c.redetect(start, trial, dt, vertices, converged)` with the start-of-step state and
+/// the positions; the strategy adds contacts for what they put inside, appends
 /// their vertices to `vertices` and returns how many contacts it added. When > 0 the
 /// integrator moves those vertices back to where its initial guess had them (outside: they
 /// were not in contact there), makes the iterate feasible and continues the Newton
@@ -128,8 +129,8 @@ concept HasConstraints = requires(C& c, const C& cc, const State& trial, Constra
 /// budget for the step is spent).
 template <class C>
 concept HasRedetection = HasConstraints<C> && requires(C& c, const State& start, const State& trial, double dt,
-                                                       std::vector<int>& vertices) {
-  { c.redetect(start, trial, dt, vertices) } -> std::same_as<int>;
+                                                       std::vector<int>& vertices, bool converged) {
+  { c.redetect(start, trial, dt, vertices, converged) } -> std::same_as<int>;
 };
 
 /// Optional hook of a contact strategy whose Hessian couples vertices that change from step

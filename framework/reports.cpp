@@ -104,7 +104,8 @@ Json to_json(const NewtonReport& r, bool with_history) {
       h.push_back({{"merit", num(it.merit)}, {"residual", num(it.residual)}, {"slope", num(it.directional_derivative)},
                    {"step_length", num(it.step_length)}, {"step_norm", num(it.step_norm)},
                    {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations},
-                   {"projected", it.projected}, {"shift", it.shift}});
+                   {"projected", it.projected}, {"shift", it.shift},
+                   {"constraints_updated", it.constraints_updated}});
     j["history"] = h;
   }
   return j;

@@ -59,6 +59,7 @@ struct NewtonIteration {
   int linear_iterations = 0;
   bool projected = false;             ///< the direction used the PSD-projected Hessian
   double shift = 0;                   ///< tau of the shifted matrix K + tau M~ (0: unshifted)
+  bool constraints_updated = false;   ///< contacts were added at the iterate this update reached (re-detection)
 };
 
 struct NewtonReport {

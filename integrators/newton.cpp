@@ -381,11 +381,19 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     problem.make_feasible(d);  // the point the line search judged: ls.value is E there
     const double decrease = e - ls.value;
     e = ls.value;
+    // New constraints where this iterate crossed an obstacle: a different problem from here
+    // on (its vertices restart), so no convergence test on this update.
+    const bool updated = problem.update_constraints(d) > 0;
+    if (updated) {
+      problem.make_feasible(d);
+      e = problem.potential(d);
+      rec.constraints_updated = true;
+    }
     problem.gradient(d, f);
     r = problem.norm(f);
     nr.history.push_back(rec);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient after the Newton update");
-    if (small_step(nr, prm, full_step, decrease, e0 - e)) {
+    if (!updated && small_step(nr, prm, full_step, decrease, e0 - e)) {
       nr.final_residual = r;
       break;
     }
@@ -468,12 +476,19 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
     nr.history.back().step_norm = ls.step * full_step;
     d += ls.step * dir;
     problem.make_feasible(d);  // the point the line search judged
+    const double merit_accepted = ls.value;
+    // New constraints where this iterate crossed an obstacle (as in `minimize`).
+    const bool updated = problem.update_constraints(d) > 0;
+    if (updated) {
+      problem.make_feasible(d);
+      nr.history.back().constraints_updated = true;
+    }
     problem.gradient(d, f);
-    const double decrease = merit - 0.5 * f.squaredNorm();
+    const double decrease = merit - merit_accepted;
     merit = 0.5 * f.squaredNorm();
     r = problem.norm(f);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite residual after the Newton update");
-    if (small_step(nr, prm, full_step, decrease, merit0 - merit)) {
+    if (!updated && small_step(nr, prm, full_step, decrease, merit0 - merit)) {
       nr.final_residual = r;
       break;
     }

@@ -60,6 +60,16 @@ class NewtonProblem {
     (void)d;
     return false;
   }
+  /// Called by `minimize` and `find_root` after every accepted update: a problem whose constraint set grows
+  /// during the iteration (contacts re-detected where the iterate crossed an obstacle,
+  /// StepSystem) adds them, updates d (their vertices restart from the initial guess) and
+  /// returns how many it added; 0 leaves d unchanged (contact.redetect_iterates; found at the
+  /// iterate that crosses rather than after convergence, such a contact does not cost the
+  /// iterations spent converging a solution that is then discarded for its vertices).
+  virtual int update_constraints(Eigen::VectorXd& d) {
+    (void)d;
+    return 0;
+  }
 };
 
 /// Which Hessian the Newton directions use.

@@ -183,14 +183,28 @@ class StepSystem final : public NewtonProblem {
   /// Hands a strategy that re-detects (`HasRedetection`) the start state and the positions
   /// x_k + d; returns the number of contacts it added (0: none) and sets the displacement
   /// of their vertices back to the initial guess `d0`.
-  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0)
+  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0, bool converged = true)
     requires HasRedetection<C>
   {
     trial_.x = x0_ + d;
     redetected_.clear();
-    const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_);
+    const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_, converged);
     for (int i : redetected_) d.segment<3>(3 * i) = d0.segment<3>(3 * i);
     return added;
+  }
+  /// The initial guess the re-detected vertices restart from (`update_constraints`); unset,
+  /// no re-detection during the iteration.
+  void set_initial_guess(const Eigen::VectorXd& d0) { d0_ = d0; }
+  /// Re-detection at every accepted Newton update (NewtonProblem::update_constraints), for
+  /// strategies that re-detect; the strategy bounds the rounds per step.
+  int update_constraints(Eigen::VectorXd& d) override {
+    if constexpr (HasRedetection<C>) {
+      if (d0_.size() != d.size()) return 0;
+      return redetect(d, d0_, false);
+    } else {
+      (void)d;
+      return 0;
+    }
   }
   /// d += z, the targets of the contact constraints at x_k + d: the iterate then meets
   /// them (exactly for the analytic obstacles). Returns whether d changed; no-op without
@@ -262,6 +276,7 @@ class StepSystem final : public NewtonProblem {
   std::vector<int> saved_rows_;       // rows of fully constrained free vertices, before the filter
   std::vector<double> saved_blocks_;  // their blocks, 9 per pattern entry, row by row
   std::vector<int> redetected_;       // vertices of the contacts the last re-detection added
+  Eigen::VectorXd d0_;                // the step's feasible initial guess (set_initial_guess)
   Eigen::VectorXd f_;
   mutable Eigen::VectorXd tmp_;
 };
@@ -324,7 +339,10 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
     system.make_feasible(d);
   }
   [[maybe_unused]] Eigen::VectorXd d0;  // the initial guess (feasible for the start-of-step contacts)
-  if constexpr (HasRedetection<C>) d0 = d;
+  if constexpr (HasRedetection<C>) {
+    d0 = d;
+    system.set_initial_guess(d0);
+  }
   NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   if constexpr (HasRedetection<C>) {
     // Contacts the converged solution crossed: their vertices back to the initial guess,

@@ -313,10 +313,13 @@ TEST_SUITE("contact") {
     const Scene scene = sheet_scene(
         fmt::format(R"([{{"shape": "plane", "center": [0, 0, {}], "normal": [0, 0, 1]}}])", -(kDelta + gap)),
         R"({"time": {"dt": 0.010416666666666667}})");
-    for (const int rounds : {0, 4}) {
+    // Re-detection off; at the converged solution only; at every iterate (the default).
+    Eigen::VectorXd x_converged, x_iterates;
+    for (const auto& [rounds, iterates] : {std::pair{0, true}, std::pair{4, false}, std::pair{4, true}}) {
       CAPTURE(rounds);
-      Stepper<integrators::IncrementalPotential, linear::Direct> st(scene, {}, {},
-                                                                   {.thickness = kDelta, .max_redetections = rounds});
+      CAPTURE(iterates);
+      Stepper<integrators::IncrementalPotential, linear::Direct> st(
+          scene, {}, {}, {.thickness = kDelta, .max_redetections = rounds, .redetect_iterates = iterates});
       const StepReport r = st.step();
       REQUIRE_MESSAGE(r.ok(), r.message);
       CHECK(r.contact.contacts == 0);  // none at the start of the step
@@ -338,9 +341,20 @@ TEST_SUITE("contact") {
         for (const auto& c : st.contact.contacts()) reaction += c.normal_force;
         const double mass = st.state.mass.sum();
         CHECK(reaction == doctest::Approx(mass * (g - gap / (dt * dt))).epsilon(1e-6));
-        CHECK(r.newton.iterations >= 2);  // the first solve and its continuation
+        REQUIRE(!r.newton.history.empty());
+        if (iterates) {
+          // Caught at the first iterate, which crossed: that update added the contacts.
+          CHECK(r.newton.history.front().constraints_updated);
+          x_iterates = st.state.x;
+        } else {
+          CHECK(r.newton.iterations >= 2);  // the first solve and its continuation
+          for (const auto& it : r.newton.history) CHECK(!it.constraints_updated);
+          x_converged = st.state.x;
+        }
       }
     }
+    // The same contacts, the same constrained problem: the same step.
+    CHECK((x_iterates - x_converged).cwiseAbs().maxCoeff() < 1e-9);
     // The rounds are bounded and the parameters checked.
     CHECK_THROWS_WITH_AS(ObstacleConstraints(scene, {.max_redetections = -1}), doctest::Contains("max_redetections = -1 violates"),
                          ConfigError);
