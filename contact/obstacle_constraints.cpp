@@ -11,7 +11,6 @@
 
 namespace weft::contact {
 
-
 ObstacleConstraints::ObstacleConstraints(const Scene& scene, const Params& prm)
     : obstacles_(scene.spec.obstacles), mass_(scene.lumped_masses()), prm_(prm) {
   Params::validate(prm).throw_if_failed(fmt::format("{}: invalid contact configuration:", scene.path));
@@ -292,7 +291,7 @@ void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
       const double ln = lambda[static_cast<Eigen::Index>(c - a)];
       const double vn_end = n.dot(v - obstacle_velocity(k.obstacle, x, dt));
       if (!(ln > 0) && vn_end * dt >= -prm_.margin) {  // the constraint pulls: release (BW98)
-              released_.push_back(key(k.vertex, k.obstacle, no));
+        released_.push_back(key(k.vertex, k.obstacle, no));
         continue;
       }
       // (A vertex still approaching at the end of the step, e.g. one that reached the
