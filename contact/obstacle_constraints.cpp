@@ -125,11 +125,14 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
       // In contact: the predicted position within reach of the obstacle where it will be,
       // or the position within reach and not separating by more than the re-detection depth
       // over the step (the tolerance the step accepts the other way). A vertex sliding over a
-      // curved obstacle has the outward normal velocity of the chord, dt |v_t|^2 / (2 R),
-      // when the failsafe takes v = (x1 - x0) / dt: 7e-4 m/s at 0.3 m/s on the drape's
-      // sphere. With the margin alone (1e-8 m) as the slack, hundreds of resting contacts
-      // were dropped every step and re-detected after the solve had carried their vertices
-      // into the sphere.
+      // curved obstacle leaves end_step with the outward normal velocity of the chord,
+      // dt |v_t|^2 / (2 R): `respond` puts it on the surface with a tangential velocity, but
+      // the failsafe's obstacle pass (ImplicitContact, contact/impulse.hpp) works with
+      // x1 = x0 + dt v, finds that point below the thickness and pushes v out by that much
+      // (7e-4 m/s at 0.3 m/s on the drape's sphere). With the margin alone (1e-8 m) as the
+      // slack, hundreds of resting contacts were dropped every step and re-detected after
+      // the solve had carried their vertices into the sphere. (Letting the failsafe skip the
+      // vertices the constraints hold would remove the velocity at its source; not done.)
       const double slack = std::max(prm_.margin, prm_.redetection_depth);
       if (end_[o].distance(xp).phi > reach && !(d.phi <= reach && vn * dt <= slack)) {
         receded += kept;

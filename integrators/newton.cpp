@@ -476,7 +476,6 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
     nr.history.back().step_norm = ls.step * full_step;
     d += ls.step * dir;
     problem.make_feasible(d);  // the point the line search judged
-    const double merit_accepted = ls.value;
     // New constraints where this iterate crossed an obstacle (as in `minimize`).
     const bool updated = problem.update_constraints(d) > 0;
     if (updated) {
@@ -484,7 +483,7 @@ NewtonFailure find_root(NewtonProblem& problem, Eigen::VectorXd& d, double absol
       nr.history.back().constraints_updated = true;
     }
     problem.gradient(d, f);
-    const double decrease = merit - merit_accepted;
+    const double decrease = merit - 0.5 * f.squaredNorm();
     merit = 0.5 * f.squaredNorm();
     r = problem.norm(f);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite residual after the Newton update");

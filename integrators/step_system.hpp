@@ -180,27 +180,29 @@ class StepSystem final : public NewtonProblem {
                                          &p_.matrix, p_.dt});
     }
   }
+  /// The step's feasible initial guess, where re-detected vertices restart (`redetect`);
+  /// unset, no re-detection.
+  void set_initial_guess(const Eigen::VectorXd& d0) { d0_ = d0; }
   /// Hands a strategy that re-detects (`HasRedetection`) the start state and the positions
-  /// x_k + d; returns the number of contacts it added (0: none) and sets the displacement
-  /// of their vertices back to the initial guess `d0`.
-  int redetect(Eigen::VectorXd& d, const Eigen::VectorXd& d0, bool converged = true)
+  /// x_k + d (`converged`: a converged solution, else an accepted Newton iterate); returns
+  /// the number of contacts it added (0: none) and sets the displacement of their vertices
+  /// back to the initial guess.
+  int redetect(Eigen::VectorXd& d, bool converged)
     requires HasRedetection<C>
   {
+    if (d0_.size() != d.size()) return 0;
     trial_.x = x0_ + d;
     redetected_.clear();
     const int added = contact_.redetect(p_.state, trial_, p_.dt, redetected_, converged);
-    for (int i : redetected_) d.segment<3>(3 * i) = d0.segment<3>(3 * i);
+    for (int i : redetected_) d.segment<3>(3 * i) = d0_.segment<3>(3 * i);
     return added;
   }
-  /// The initial guess the re-detected vertices restart from (`update_constraints`); unset,
-  /// no re-detection during the iteration.
-  void set_initial_guess(const Eigen::VectorXd& d0) { d0_ = d0; }
   /// Re-detection at every accepted Newton update (NewtonProblem::update_constraints), for
-  /// strategies that re-detect; the strategy bounds the rounds per step.
+  /// strategies that re-detect; the strategy decides whether it acts on iterates and bounds
+  /// the rounds per step.
   int update_constraints(Eigen::VectorXd& d) override {
     if constexpr (HasRedetection<C>) {
-      if (d0_.size() != d.size()) return 0;
-      return redetect(d, d0_, false);
+      return redetect(d, false);
     } else {
       (void)d;
       return 0;
@@ -338,18 +340,14 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
     initial_displacement(p, InitialGuess::zero, d);
     system.make_feasible(d);
   }
-  [[maybe_unused]] Eigen::VectorXd d0;  // the initial guess (feasible for the start-of-step contacts)
-  if constexpr (HasRedetection<C>) {
-    d0 = d;
-    system.set_initial_guess(d0);
-  }
+  if constexpr (HasRedetection<C>) system.set_initial_guess(d);  // feasible for the start-of-step contacts
   NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   if constexpr (HasRedetection<C>) {
     // Contacts the converged solution crossed: their vertices back to the initial guess,
     // then continue the iteration with them (the strategy bounds the rounds). The report
     // sums the iterations of every round and keeps the first round's initial residual; the
     // tolerance is the first round's, absolute.
-    while (f.status == Status::success && system.redetect(d, d0) > 0) {
+    while (f.status == Status::success && system.redetect(d, true) > 0) {
       const NewtonReport first = rep.newton;
       system.make_feasible(d);
       f = solve(system, d, first.tolerance, rep);

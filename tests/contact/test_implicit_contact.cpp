@@ -122,7 +122,7 @@ TEST_SUITE("contact") {
   TEST_CASE("implicit contact: a sheet sliding over a sphere keeps its contacts from step to step") {
     // Frictionless, 0.5 m/s along x over a sphere of radius 0.3 m, dt = 1/120 s. A vertex in
     // contact leaves the step on the surface with the outward normal velocity of the chord,
-    // dt |v|^2 / (2 R) = 3.5e-3 m/s, once the failsafe takes v = (x1 - x0) / dt. Judged
+    // dt |v|^2 / (2 R) = 3.5e-3 m/s, added by the failsafe (x0 + dt v below the thickness). Judged
     // against the 1e-8 m margin, that dropped every sliding contact at the next step's start;
     // the sheet then fell g dt^2 = 0.68 mm into the sphere during the solve and was re-detected
     // (the drape at 41 x 41: hundreds of contacts a step, every re-detection round used).
@@ -150,7 +150,7 @@ TEST_SUITE("contact") {
     MESSAGE("sliding over the sphere, steps 3-20: " << contacts << " contacts at the steps' starts, " << redetected
                                                     << " re-detected in the solves");
     CHECK(contact_steps == 18);  // it stayed on the sphere (steps 21-30 slide it over the side) ...
-    // ... and what re-detection adds is the rim the sheet drapes onto (measured 6 of 247), not
+    // ... and what re-detection adds is the rim the sheet drapes onto (measured 6 of 298), not
     // the contacts it was resting on (all of them, every step, when they were dropped).
     CHECK(redetected * 10 < contacts);
     CHECK(sim->state().velocity(60).x() > 0.3);  // still sliding (frictionless)

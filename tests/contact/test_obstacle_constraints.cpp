@@ -313,7 +313,7 @@ TEST_SUITE("contact") {
     const Scene scene = sheet_scene(
         fmt::format(R"([{{"shape": "plane", "center": [0, 0, {}], "normal": [0, 0, 1]}}])", -(kDelta + gap)),
         R"({"time": {"dt": 0.010416666666666667}})");
-    // Re-detection off; at the converged solution only; at every iterate (the default).
+    // Re-detection off; at the converged solution only (the default); also at every iterate.
     Eigen::VectorXd x_converged, x_iterates;
     for (const auto& [rounds, iterates] : {std::pair{0, true}, std::pair{4, false}, std::pair{4, true}}) {
       CAPTURE(rounds);
