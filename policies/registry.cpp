@@ -19,6 +19,8 @@
     "obstacle_penalty", "direct", "cloth against analytic obstacles through a penalty potential (frictionless)") \
   X(cloth_ip_impulse_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "impulse", "direct", "Bridson-style impulses after the solve: obstacles and self contact with friction, impact zones") \
+  X(cloth_ip_impulse_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
+    "impulse", "sa_ppcg", "as cloth_ip_impulse_direct with smoothed-aggregation PCG: impulse contact on large cloth") \
   X(cloth_ip_compliance_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "linear_compliance", "direct", "linear compliance after the solve (D = A^-1): Gauss-Seidel over exact Coulomb contacts, impulse failsafe") \
   X(cloth_ip_constraints_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \

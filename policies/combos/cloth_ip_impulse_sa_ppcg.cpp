@@ -1,0 +1,10 @@
+// One explicit instantiation per translation unit (STYLE.md §4, §9).
+#include "policies/combo_factory.hpp"
+#include "policies/presets.hpp"
+
+namespace weft {
+
+template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::SaPpcg>;
+WEFT_DEFINE_COMBO(cloth_ip_impulse_sa_ppcg, Simulator<ClothTheta, integrators::IncrementalPotential, contact::Impulse, linear::SaPpcg>)
+
+}  // namespace weft
