@@ -141,7 +141,7 @@ ContactReport ObstacleConstraints::begin_step(const State& s, double dt) {
       next.push_back(make_contact(i, o, s, dt, kept ? &contacts_[old] : nullptr));
     }
   }
-  r.released = static_cast<int>(released_.size()) + receded;
+  r.released = receded;  // those of released_ were counted when end_step released them
   released_.clear();
   contacts_ = std::move(next);
   r.sticking = prepare_contacts(s);

@@ -184,7 +184,8 @@ class ObstacleConstraints {
   void declare(AssemblyPlan&) {}
   /// Detection and the friction state of the step (see the file comment). Reports the
   /// contacts, the sticking ones, and in `released` the contacts of the last step dropped
-  /// now: their reaction pulled at its end, or vertex and obstacle separate.
+  /// now because vertex and obstacle separate (those whose reaction pulled were counted by
+  /// the end of the last step, which released them).
   ContactReport begin_step(const State& s, double dt);
   /// -F^T x summed over the sliding contacts (the explicit kinetic friction) [J].
   double energy(const State& s) const;

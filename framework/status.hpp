@@ -93,7 +93,7 @@ struct ContactReport {
   double max_penetration = 0;  ///< [m] largest depth of a free vertex below the contact thickness of an obstacle after the response
   // Counters of the obstacle-constraint strategy (contact/obstacle_constraints.hpp), which also
   // fills `obstacle_contacts` and `max_penetration`; 0 for the other strategies.
-  int released = 0;            ///< contacts released: end_step, their normal reaction pulled; begin_step, dropped at its start (pulled, or separating)
+  int released = 0;            ///< contacts released, each once: at end_step when its normal reaction pulled, at begin_step when vertex and obstacle separate
   int sticking = 0;            ///< contacts held by static friction (3D constraints) during the step
   int projected = 0;           ///< vertices projected onto an obstacle's thickness surface after the solve
   double solve_penetration = 0;  ///< [m] largest depth below the contact thickness after the solve, before the projection
