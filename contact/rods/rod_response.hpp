@@ -24,7 +24,8 @@
 /// own (in parallel). Inside a group, with lambda_k the multiplier of contact k (units of
 /// M times a displacement, N s^2) and P_k = D G_k stored on the rows of its one or two
 /// rods:
-///   loop:  d_u = d (first iteration: the DEL solution) or d - D f(d) (later ones)
+///   loop:  d_u = d (first iteration: the DEL solution) or d - D f(d) (later ones; by default
+///          only for the rods re-linearised in the iteration, the others keep theirs: `predictor`)
 ///          x = d_u + sum_k P_k lambda_k;  GS sweeps (or staggered projections) until the
 ///          largest Fischer-Burmeister residual is below `contact_tol` or `gs_max` sweeps
 ///          `solver = newton`: then semismooth Newton on the group's Fischer-Burmeister system
@@ -68,6 +69,16 @@ enum class GapTerm {
 };
 inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "penetration", "full"};
 
+/// Which rods get a new predictor d_u = d - K^-1 f(d) at a constrained Newton iteration after
+/// the first (ADONIS; staggered projections re-linearise every rod, so both are the same there).
+enum class PredictorUpdate {
+  relinearized,  ///< only the rods re-linearised in this iteration; the others keep their last
+                 ///< linear model (predictor and P_k), which their stretch already accepted
+  every_rod,     ///< every rod of the group, with its stale K where it was not re-linearised
+                 ///< (modified Newton, the thesis' Algorithm 6 as printed)
+};
+inline constexpr std::array<std::string_view, 2> predictor_update_names = {"relinearized", "every_rod"};
+
 /// The solver of a group's contact problem (rod_group_solver.hpp): Gauss-Seidel up to
 /// `gs_max`, then with `newton` semismooth Newton to `contact_tol` (the step fails if it cannot).
 using contact::ContactSolver;
@@ -82,6 +93,7 @@ struct RodContactParams {
   int newton_max = 100;        ///< ADONIS, staggered projections: constrained Newton iterations per group
   bool limit_stretch = false;  ///< ADONIS, staggered projections: the strain trust region of the constrained Newton step
   HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
+  PredictorUpdate predictor = PredictorUpdate::relinearized;  ///< ADONIS: which rods get a new predictor after the first iteration
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
   GapTerm gap = GapTerm::none;
@@ -102,6 +114,11 @@ struct RodContactParams {
               "ADONIS, staggered projections: the Hessian of K = M + h^2 H at the re-linearisations after the first (at "
               "d_DEL, a minimiser, the exact one): exact (the thesis; falls back to projected when it does not factorise) or "
               "projected (per-element PSD projection: K positive definite, as the constrained Newton step needs)");
+    v.choice("predictor", predictor, predictor_update_names,
+             "ADONIS: which rods get a new predictor d - K^-1 f(d) at each constrained Newton iteration after the first: "
+             "relinearized (only the rods re-linearised in it; the others keep the linear model their stretch accepted) or "
+             "every_rod (modified Newton with the stale K of the others: the thesis as printed, which runs away on the hair balls "
+             "at 10 ms)");
     v.field("limit_stretch", limit_stretch,
             {Unit::none, Range::any(),
              "ADONIS, staggered projections: halve a rod's constrained Newton step until it stays in the model's domain and its "
@@ -358,7 +375,7 @@ class RodResponse {
     // The order of the sweeps: detection order, or a shuffle (`order_seed`, ordering tests).
     std::vector<int> order = ids;
     if (prm_.order_seed != 0) std::shuffle(order.begin(), order.end(), std::mt19937_64(prm_.order_seed + 7919ull * ids.front()));
-    GroupDisplacements xs(rods.size());
+    GroupDisplacements xs(rods.size()), du(rods.size());
     // The first linearisation: K at q + d_DEL for every rod of the group.
     if constexpr (uses_stiffness)
       for (int r : rods)
@@ -373,8 +390,19 @@ class RodResponse {
       st.outer = outer;
       for (int id : rebuild) build_compliance(sys, contacts_[id]);
       // Predictor: the DEL solution first, then d - K^-1 f(d) with each rod's (possibly stale) K.
+      // With `predictor = relinearized` a rod whose K was not refreshed keeps its last
+      // predictor: its response stays the linear one its stretch accepted. A new predictor with
+      // the stale K (modified Newton, `every_rod`) is a full step along K's softest modes
+      // (bending and twist of a hair are 1e5-1e9 times softer than its stretching) driven by
+      // the nonlinear stretching residual of the rotated edges: on the 250-rod hair ball at
+      // 10 ms it moved a coordinate of a rod that was within 1 % by 65-128 (m or rad) at the
+      // second iteration, and the group ran away (edges stretched by 1e54 two iterations later).
       for (size_t i = 0; i < rods.size(); ++i) {
         const int r = rods[i];
+        if (outer > 1 && prm_.predictor == PredictorUpdate::relinearized && !fresh[i]) {
+          xs[i] = du[i];
+          continue;
+        }
         xs[i] = sys.body(r).d;
         if (outer > 1) {
           Eigen::VectorXd f;
@@ -383,6 +411,7 @@ class RodResponse {
           sys.solve(r, F);
           xs[i] -= F.col(0);
         }
+        du[i] = xs[i];
       }
       for (int id : ids) add_response(contacts_[id], contacts_[id].lambda, xs);
       if constexpr (S == RodStrategy::staggered_projections) {
