@@ -24,8 +24,18 @@ using Eigen::VectorXd;
 
 Vector3d local_displacement(const RodContactRows& k, const GroupDisplacements& x) {
   Vector3d u = k.b;
-  for (int side = 0; side < 2; ++side)
-    if (k.rods[side] >= 0) u += k.G[side].transpose() * x[k.slot[side]];
+  for (int side = 0; side < 2; ++side) {
+    if (k.rods[side] < 0) continue;
+    const VectorXd& xs = x[k.slot[side]];
+    if (k.blocks[side] < 0) {
+      u += k.G[side].transpose() * xs;
+      continue;
+    }
+    for (int j = 0; j < k.blocks[side]; ++j) {
+      const int row = 4 * k.stencil[side][j];
+      u += k.G[side].middleRows<3>(row).transpose() * xs.segment<3>(row);
+    }
+  }
   return u;
 }
 

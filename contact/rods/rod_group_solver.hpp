@@ -38,6 +38,11 @@ struct RodContactRows {
   std::array<int, 2> rods{-1, -1};           ///< distinct rods touched (second -1 for self and obstacle contacts)
   std::array<int, 2> slot{-1, -1};          ///< their positions in the group's rod list (set by the group solve)
   std::array<Eigen::MatrixXd, 2> G, P;       ///< per touched rod: n_r x 3 columns of G_k and of D G_k
+  /// Per touched rod, the vertices whose three position rows of G_k may be nonzero (the
+  /// contact's stencil: at most 4), so that G_k^T x reads 3-12 rows instead of n_r;
+  /// blocks[side] < 0: G_k is read whole (a G_k built by hand, as in the tests).
+  std::array<std::array<int, 4>, 2> stencil{};
+  std::array<int, 2> blocks{-1, -1};
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  ///< scripted part of u_k
   Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  ///< G_k^T D G_k
   Eigen::Vector3d lambda = Eigen::Vector3d::Zero();

@@ -294,7 +294,7 @@ class RodResponse {
     const double s = 1 / std::sqrt(free2);
     k.rods = {c.rod_a, c.kind == RodContact::Kind::rod_rod && c.rod_b != c.rod_a ? c.rod_b : -1};
     for (int side = 0; side < 2; ++side)
-      if (k.rods[side] >= 0) k.G[side] = Eigen::MatrixXd::Zero(sys.body(k.rods[side]).q.size(), 3);
+      if (k.rods[side] >= 0) k.G[side] = Eigen::MatrixXd::Zero(sys.body(k.rods[side]).q.size(), 3), k.blocks[side] = 0;
     Eigen::Vector3d scripted = Eigen::Vector3d::Zero();
     for (const auto& [r, i, g] : st) {
       const auto& b = sys.body(r);
@@ -304,6 +304,9 @@ class RodResponse {
       }
       const int side = r == k.rods[0] ? 0 : 1;
       k.G[side].template middleRows<3>(4 * i) += s * g * F;
+      auto& list = k.stencil[side];
+      int& used = k.blocks[side];
+      if (std::find(list.begin(), list.begin() + used, i) == list.begin() + used) list[used++] = i;
     }
     if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement;
     k.b = s * F.transpose() * scripted;
