@@ -1,5 +1,7 @@
 #include "contact/coulomb.hpp"
 
+#include "contact/contact_newton.hpp"
+
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -31,16 +33,11 @@ Candidate newton(const Matrix3d& W, const Vector3d& b, double mu, double s, Vect
   auto F = [&](const Vector3d& q) { return fischer_burmeister_vector(q, W * q + b, mu, s); };
   Vector3d f = F(r);
   double f2 = f.squaredNorm();
-  const double rscale = std::max(b.norm() / s, std::numeric_limits<double>::min());
   for (iterations = 0; iterations < max_it && std::sqrt(f2) > tol; ++iterations) {
-    Matrix3d J;
-    const double delta = 1e-7 * std::max(r.norm(), rscale);
-    for (int i = 0; i < 3; ++i) {
-      Vector3d p = r, m = r;
-      p[i] += delta;
-      m[i] -= delta;
-      J.col(i) = (F(p) - F(m)) / (2 * delta);
-    }
+    // J = dphi/dr + dphi/du W, an element of the generalised Jacobian (contact_newton.hpp).
+    Matrix3d A, B;
+    fischer_burmeister_jacobian(r, W * r + b, mu, s, A, B);
+    const Matrix3d J = A + B * W;
     const Vector3d step = J.fullPivLu().solve(-f);
     if (!step.allFinite()) break;
     double t = 1.0;
