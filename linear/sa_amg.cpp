@@ -515,7 +515,8 @@ struct Level {
   std::vector<std::uint8_t> strong, special;
   sa::Aggregates aggs;
   int num_special = 0;
-  BlockMatrix<B, 6> P;
+  BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf holds them
+  std::vector<float> Pf;         // single_prolongator: P's values, B x 6 row-major blocks
   TransposeIndex PT;
   std::vector<std::uint8_t> dummy;  // per coarse dof
   int deficient = 0;
@@ -532,7 +533,7 @@ struct Level {
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() +
+    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() + vb(Pf) +
                     PT.memory_bytes() + vb(dummy);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -667,6 +668,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       L.special = {};
       L.aggs = {};
       L.P.clear();
+      L.Pf = {};
       L.PT = {};
       make_coarsest(L, prm);
       ctx.stats.push_back(st);
@@ -695,9 +697,12 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   {
     ScopedTimer t(T.smoothing);
     if (!reuse) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
+    L.P.values().assign(static_cast<std::size_t>(B * 6) * L.P.nnz(), 0.0);  // freed after the last Galerkin product
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, 4.0 / (3.0 * L.lambda), L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
     if (!reuse) L.PT.build(L.P.view());
+    if (prm.single_prolongator)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
+      for (double& v : L.P.values()) v = static_cast<double>(static_cast<float>(v));
   }
   st.nnz_p = L.P.nnz();
   tent.Q = {};
@@ -732,6 +737,12 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       for (int c = 0; c < 6; ++c)
         if (L.dummy[6 * I + c]) D(c, c) = mean;
     }
+  }
+  if (prm.single_prolongator) {  // the cycle reads P from here on: keep it in float only
+    L.Pf.assign(L.P.values().begin(), L.P.values().end());
+    std::vector<double>().swap(L.P.values());
+  } else {
+    L.Pf = {};
   }
   if (prm.reuse == SaReuse::none) {
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
@@ -905,6 +916,47 @@ void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f
     xv = L.ldlt.solve(xv);
 }
 
+/// f_c = P^T res of level L (P in double or, with single_prolongator, in float).
+template <int B>
+void restrict_residual(const Level<B>& L, double* fc) {
+  if (L.Pf.empty()) {
+    spmv_transpose(L.P.view(), L.PT, L.res.data(), fc);
+    return;
+  }
+  using Blk = Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>;
+  const TransposeIndex& T = L.PT;
+  const int nc = L.P.cols();
+#pragma omp parallel for schedule(static) if (nc > parallel_rows)
+  for (int j = 0; j < nc; ++j) {
+    Vec<6> acc = Vec<6>::Zero();
+    for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
+      acc.noalias() += Blk(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * T.blk[t]).template cast<double>().transpose() *
+                       Eigen::Map<const Vec<B>>(L.res.data() + B * T.row[t]);
+    Eigen::Map<Vec<6>>(fc + 6 * j) = acc;
+  }
+}
+
+/// x += P x_c of level L.
+template <int B>
+void prolongate_add(const Level<B>& L, const double* xc, double* x) {
+  if (L.Pf.empty()) {
+    multiply_add(L.P.view(), xc, x);
+    return;
+  }
+  using Blk = Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>;
+  const std::vector<int>& rp = L.P.row_ptr();
+  const std::vector<int>& col = L.P.col();
+  const int n = L.P.rows();
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    Vec<B> acc = Vec<B>::Zero();
+    for (int k = rp[i]; k < rp[i + 1]; ++k)
+      acc.noalias() += Blk(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * k).template cast<double>() *
+                       Eigen::Map<const Vec<6>>(xc + 6 * col[k]);
+    Eigen::Map<Vec<B>>(x + B * i) += acc;
+  }
+}
+
 template <int B>
 void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, const SaAmg::Params& prm,
            const double* f, double* x) {
@@ -916,7 +968,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   const auto A = L.A();
   chebyshev(L, prm, f, x, /*zero_guess=*/true);  // pre-smoothing (G*)
   residual(A, f, x, L.res.data());
-  spmv_transpose(L.P.view(), L.PT, L.res.data(), C.f.data());
+  restrict_residual(L, C.f.data());
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
   // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
@@ -926,7 +978,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
       cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data());
       C.x += C.wx;
     }
-  multiply_add(L.P.view(), C.x.data(), x);
+  prolongate_add(L, C.x.data(), x);
   chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
 }
 
@@ -969,8 +1021,18 @@ Eigen::MatrixXd SaAmg::level_matrix(int l) const {
 
 Eigen::MatrixXd SaAmg::prolongator(int l) const {
   WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
-  if (l == 0) return impl_->fine->P.to_dense();
-  return impl_->coarse[l - 1].P.to_dense();
+  auto dense = [](const auto& L) {
+    if (L.Pf.empty()) return L.P.to_dense();
+    constexpr int B = std::remove_cvref_t<decltype(L.P)>::Block::RowsAtCompileTime;
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(B) * L.P.rows(), 6 * static_cast<Eigen::Index>(L.P.cols()));
+    for (int i = 0; i < L.P.rows(); ++i)
+      for (int k = L.P.row_ptr()[i]; k < L.P.row_ptr()[i + 1]; ++k)
+        D.block<B, 6>(B * i, 6 * L.P.col()[k]) =
+            Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * k).template cast<double>();
+    return D;
+  };
+  if (l == 0) return dense(*impl_->fine);
+  return dense(impl_->coarse[l - 1]);
 }
 
 

@@ -201,6 +201,11 @@ class SaAmg {
     int cycle_gamma = 1;
     int cycle_gamma_levels = 1;        ///< how many coarse levels (from level 1) get cycle_gamma
     SaReuse reuse = SaReuse::none;
+    /// Store the prolongators in single precision. P is rounded before the Galerkin product,
+    /// so A_c = P^T A P holds exactly for the stored P and the cycle stays SPD; the products
+    /// accumulate in double. At 10k-160k vertices the rounding left SA+PPCG's iterations
+    /// unchanged (bench/results/table-11-1/M-memory.md); it halves P's value bytes.
+    bool single_prolongator = true;
 
     template <class V>
     void visit(V& v) {
@@ -225,6 +230,8 @@ class SaAmg {
       v.field("cycle_gamma_levels", cycle_gamma_levels,
               {Unit::none, Range::closed(1, 30), "coarse levels, counted from level 1, that get cycle_gamma cycles"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
+      v.field("single_prolongator", single_prolongator,
+              {Unit::none, Range::any(), "store the prolongators in single precision (rounded before the Galerkin product; products in double)"});
     }
   };
   static Checker validate(const Params& p);

@@ -532,6 +532,36 @@ TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle 
   }
 }
 
+TEST_CASE("sa: single-precision prolongators keep the PCG iterations and take less memory") {
+  // The default stores P in float, rounded before the Galerkin product; the double-precision
+  // hierarchy is the reference. Irregular cloth pinned at two sides and the re-entrant L.
+  for (Pins pins : {Pins::two_sides, Pins::reentrant}) {
+    CAPTURE(static_cast<int>(pins));
+    Prefiltered p = prefiltered_cloth(61, Tessellation::irregular, pins);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    SaAmg::Params dp = small_coarse(50), sp = small_coarse(50);
+    dp.single_prolongator = false;
+    REQUIRE(sp.single_prolongator);  // the default
+    SaAmg d(dp), f(sp);
+    REQUIRE(d.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(f.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(f.levels() >= 3);
+    // The stored P is the rounded one: float-representable entries, within float rounding of
+    // the double one.
+    const Eigen::MatrixXd Pd = d.prolongator(0), Pf = f.prolongator(0);
+    CHECK(Pf == Pf.cast<float>().cast<double>());
+    CHECK((Pf - Pd).norm() <= 1e-7 * Pd.norm());
+    CHECK((Pf - Pd).norm() > 0);  // the rounding did happen
+    const PcgResult rd = pcg(p.Ahat, p.chat, d), rf = pcg(p.Ahat, p.chat, f);
+    MESSAGE("double P: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; float P: " << rf.iterations
+                         << " iterations, " << f.info().memory_bytes << " bytes");
+    CHECK(rd.converged);
+    CHECK(rf.converged);
+    CHECK(std::abs(rf.iterations - rd.iterations) <= 1);
+    CHECK(f.info().memory_bytes < 0.9 * d.info().memory_bytes);
+  }
+}
+
 TEST_CASE("sa: setup without positions is invalid input") {
   BlockCsr A = support::block_laplacian(5, 0.1);
   SaAmg sa({});
