@@ -139,10 +139,8 @@ TEST_SUITE("rods") {
     CHECK(rod_contacts > 0);
     CHECK(sphere_contacts > 0);
   }
-}
 
-TEST_SUITE("rods") {
-  TEST_CASE("hairball: ADONIS keeps the linear model of the rods it does not re-linearise, and holds where modified Newton runs away") {
+  TEST_CASE("hairball: ADONIS keeps the linear model of the rods it does not re-linearise and holds where modified Newton runs away") {
     // The 250-rod ball at 10 ms through step 5: by step 4 one group holds ~430 contacts on
     // ~220 rods. With `predictor = every_rod` (the thesis' Algorithm 6 as printed: a new
     // predictor d - K^-1 f(d) for every rod, with the stale K of those not re-linearised) the
@@ -189,7 +187,7 @@ TEST_SUITE("rods") {
 }
 
 TEST_SUITE("slow") {
-  TEST_CASE("hairball: re-detection adds no rod crossings to ADONIS's steps, one detection per step (the thesis) does") {
+  TEST_CASE("hairball: re-detection adds no rod crossings to ADONIS's steps while one detection per step (the thesis) does") {
     // The 250-rod ball at 10 ms, 10 steps (the hair lands on the sphere and on itself). The
     // seeding leaves 41 pairs of rods overlapping by more than half their radius sum at t = 0
     // (the curls of neighbouring roots intersect), and the thesis' constraint n^T d >= 0
@@ -225,9 +223,7 @@ TEST_SUITE("slow") {
     CHECK(re.worst <= re.initial);
     CHECK(once.worst > once.initial);
   }
-}
 
-TEST_SUITE("slow") {
   TEST_CASE("hairball: 250 rods under ADONIS at 10 ms stay stable through a rotation start and stop") {
     // V-21 reduced: the first quarter turn starts at 0.2 s and stops at 0.7 s. Before the
     // default `contact.predictor = relinearized` it failed at step 4 (the modified-Newton

@@ -99,7 +99,7 @@ Outcome run(bool project, NewtonParams prm, bool lagrangian = true) {
 }  // namespace
 
 TEST_SUITE("integrators") {
-  TEST_CASE("newton: iterates are made feasible again, so a constraint that pulls does not stall the line search") {
+  TEST_CASE("newton: iterates are made feasible again so a constraint that pulls does not stall the line search") {
     NewtonParams prm = exact_newton(60);
     for (auto search : {LineSearchKind::backtracking, LineSearchKind::more_thuente}) {
       prm.line_search = search;
@@ -118,7 +118,7 @@ TEST_SUITE("integrators") {
     }
   }
 
-  TEST_CASE("newton: trials are judged made feasible, so a Newton matrix blind to the constraint's curvature does not cycle") {
+  TEST_CASE("newton: trials are judged made feasible so a Newton matrix blind to the constraint's curvature does not cycle") {
     NewtonParams prm = exact_newton(100);
     for (auto search : {LineSearchKind::hager_zhang, LineSearchKind::more_thuente, LineSearchKind::backtracking}) {
       prm.line_search = search;
