@@ -304,11 +304,24 @@ void residual(const BsrView<R, C>& A, const double* f, const double* x, double* 
     Eigen::Map<Eigen::Matrix<double, R, 1>>(r + R * i) = Eigen::Map<const Eigen::Matrix<double, R, 1>>(f + R * i) - row_product(A, i, x);
 }
 
-/// y += A x. Parallel over block rows (x and y must not alias).
-template <int R, int C>
-void multiply_add(const BsrView<R, C>& A, const double* x, double* y) {
+/// Block k of R x C row-major blocks stored as T (double, or float for single-precision
+/// storage), read as double.
+template <int R, int C, class T>
+inline Eigen::Matrix<double, R, C> value_block(const T* val, std::ptrdiff_t k) {
+  return Eigen::Map<const Eigen::Matrix<T, R, C, Eigen::RowMajor>>(val + static_cast<std::ptrdiff_t>(R * C) * k).template cast<double>();
+}
+
+/// y += A x for a rectangular pattern (no one-triangle storage, no filter) whose values are
+/// `val` (T: double or float; products in double). Parallel over block rows.
+template <int R, int C, class T>
+void multiply_add(const BsrView<R, C>& A, const T* val, const double* x, double* y) {
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
-  for (int i = 0; i < A.rows; ++i) Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) += row_product(A, i, x);
+  for (int i = 0; i < A.rows; ++i) {
+    Eigen::Matrix<double, R, 1> acc = Eigen::Matrix<double, R, 1>::Zero();
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      acc.noalias() += value_block<R, C>(val, k) * Eigen::Map<const Eigen::Matrix<double, C, 1>>(x + C * A.col[k]);
+    Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) += acc;
+  }
 }
 
 /// Column-wise listing of a BSR pattern: for block column j, the blocks
@@ -336,14 +349,15 @@ struct TransposeIndex {
   std::size_t memory_bytes() const { return (ptr.capacity() + row.capacity() + blk.capacity()) * sizeof(int); }
 };
 
-/// y = A^T x (y sized C * cols) through the transpose index T of A. Parallel over columns.
-template <int R, int C>
-void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const double* x, double* y) {
+/// y = A^T x (y sized C * cols) through the transpose index T of A, for a rectangular pattern
+/// whose values are `val` (double or float, as `multiply_add`). Parallel over columns.
+template <int R, int C, class V>
+void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const V* val, const double* x, double* y) {
 #pragma omp parallel for schedule(static) if (A.cols > parallel_rows)
   for (int j = 0; j < A.cols; ++j) {
     Eigen::Matrix<double, C, 1> acc = Eigen::Matrix<double, C, 1>::Zero();
     for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
-      acc.noalias() += A.stored(T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
+      acc.noalias() += value_block<R, C>(val, T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
     Eigen::Map<Eigen::Matrix<double, C, 1>>(y + C * j) = acc;
   }
 }

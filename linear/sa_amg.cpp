@@ -697,7 +697,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   {
     ScopedTimer t(T.smoothing);
     if (!reuse) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
-    L.P.values().assign(static_cast<std::size_t>(B * 6) * L.P.nnz(), 0.0);  // freed after the last Galerkin product
+    L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if single_prolongator freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, 4.0 / (3.0 * L.lambda), L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
     if (!reuse) L.PT.build(L.P.view());
@@ -916,45 +916,13 @@ void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f
     xv = L.ldlt.solve(xv);
 }
 
-/// f_c = P^T res of level L (P in double or, with single_prolongator, in float).
-template <int B>
-void restrict_residual(const Level<B>& L, double* fc) {
-  if (L.Pf.empty()) {
-    spmv_transpose(L.P.view(), L.PT, L.res.data(), fc);
-    return;
-  }
-  using Blk = Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>;
-  const TransposeIndex& T = L.PT;
-  const int nc = L.P.cols();
-#pragma omp parallel for schedule(static) if (nc > parallel_rows)
-  for (int j = 0; j < nc; ++j) {
-    Vec<6> acc = Vec<6>::Zero();
-    for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
-      acc.noalias() += Blk(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * T.blk[t]).template cast<double>().transpose() *
-                       Eigen::Map<const Vec<B>>(L.res.data() + B * T.row[t]);
-    Eigen::Map<Vec<6>>(fc + 6 * j) = acc;
-  }
-}
-
-/// x += P x_c of level L.
-template <int B>
-void prolongate_add(const Level<B>& L, const double* xc, double* x) {
-  if (L.Pf.empty()) {
-    multiply_add(L.P.view(), xc, x);
-    return;
-  }
-  using Blk = Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>;
-  const std::vector<int>& rp = L.P.row_ptr();
-  const std::vector<int>& col = L.P.col();
-  const int n = L.P.rows();
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-  for (int i = 0; i < n; ++i) {
-    Vec<B> acc = Vec<B>::Zero();
-    for (int k = rp[i]; k < rp[i + 1]; ++k)
-      acc.noalias() += Blk(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * k).template cast<double>() *
-                       Eigen::Map<const Vec<6>>(xc + 6 * col[k]);
-    Eigen::Map<Vec<B>>(x + B * i) += acc;
-  }
+/// f(values of P): P's values as the cycle reads them, in double or (single_prolongator) float.
+template <int B, class F>
+void with_prolongator_values(const Level<B>& L, F&& f) {
+  if (L.Pf.empty())
+    f(L.P.values().data());
+  else
+    f(L.Pf.data());
 }
 
 template <int B>
@@ -968,7 +936,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   const auto A = L.A();
   chebyshev(L, prm, f, x, /*zero_guess=*/true);  // pre-smoothing (G*)
   residual(A, f, x, L.res.data());
-  restrict_residual(L, C.f.data());
+  with_prolongator_values(L, [&](const auto* p) { spmv_transpose(L.P.view(), L.PT, p, L.res.data(), C.f.data()); });
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
   // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
@@ -978,7 +946,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
       cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data());
       C.x += C.wx;
     }
-  prolongate_add(L, C.x.data(), x);
+  with_prolongator_values(L, [&](const auto* p) { multiply_add(L.P.view(), p, C.x.data(), x); });
   chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
 }
 
@@ -1023,13 +991,9 @@ Eigen::MatrixXd SaAmg::prolongator(int l) const {
   WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
   auto dense = [](const auto& L) {
     if (L.Pf.empty()) return L.P.to_dense();
-    constexpr int B = std::remove_cvref_t<decltype(L.P)>::Block::RowsAtCompileTime;
-    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(B) * L.P.rows(), 6 * static_cast<Eigen::Index>(L.P.cols()));
-    for (int i = 0; i < L.P.rows(); ++i)
-      for (int k = L.P.row_ptr()[i]; k < L.P.row_ptr()[i + 1]; ++k)
-        D.block<B, 6>(B * i, 6 * L.P.col()[k]) =
-            Eigen::Map<const Eigen::Matrix<float, B, 6, Eigen::RowMajor>>(L.Pf.data() + static_cast<std::ptrdiff_t>(B * 6) * k).template cast<double>();
-    return D;
+    auto P = L.P;  // the pattern, with the float values in double (a diagnostic: a copy is fine)
+    P.values().assign(L.Pf.begin(), L.Pf.end());
+    return P.to_dense();
   };
   if (l == 0) return dense(*impl_->fine);
   return dense(impl_->coarse[l - 1]);
