@@ -2,10 +2,14 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <random>
+#include <unordered_map>
 
+#include "framework/distance.hpp"
 #include "framework/error.hpp"
 #include "framework/scene.hpp"
 
@@ -47,6 +51,61 @@ Eigen::VectorXd interleave(const std::vector<Eigen::Vector3d>& x) {
   return q;
 }
 
+/// The centreline segments of the rods placed so far, hashed by the cell of their midpoint,
+/// to check that a new rod keeps `reach` (radii plus clearance) from all of them. Two
+/// segments no longer than `longest` whose midpoints are farther apart than longest + reach
+/// are farther apart than reach, so with cells of that size the 27 cells around a midpoint
+/// hold every segment that can be too close.
+class SeedGrid {
+ public:
+  SeedGrid(double longest, double reach) : cell_(longest + reach), reach_(reach) {}
+
+  /// True when no segment of x comes within `reach` of a segment already added.
+  bool clear(const std::vector<Eigen::Vector3d>& x) const {
+    for (size_t i = 0; i + 1 < x.size(); ++i) {
+      const Eigen::Vector3i c = cell(0.5 * (x[i] + x[i + 1]));
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            const auto it = cells_.find(key(c + Eigen::Vector3i(dx, dy, dz)));
+            if (it == cells_.end()) continue;
+            for (const int s : it->second)
+              if (segment_segment_distance(x[i], x[i + 1], ends_[s].first, ends_[s].second).distance_squared < reach_ * reach_) return false;
+          }
+    }
+    return true;
+  }
+
+  void add(const std::vector<Eigen::Vector3d>& x) {
+    for (size_t i = 0; i + 1 < x.size(); ++i) {
+      cells_[key(cell(0.5 * (x[i] + x[i + 1])))].push_back(static_cast<int>(ends_.size()));
+      ends_.emplace_back(x[i], x[i + 1]);
+    }
+  }
+
+ private:
+  Eigen::Vector3i cell(const Eigen::Vector3d& p) const { return (p / cell_).array().floor().cast<int>(); }
+  static std::int64_t key(const Eigen::Vector3i& c) {
+    // 21 bits per axis: cells of a hair ball are within +-2^20 of the origin by far.
+    const auto u = [](int v) { return static_cast<std::int64_t>(v + (1 << 20)) & ((std::int64_t{1} << 21) - 1); };
+    return (u(c.x()) << 42) | (u(c.y()) << 21) | u(c.z());
+  }
+  double cell_, reach_;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> ends_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+};
+
+/// True when every segment of x keeps `reach` from the centre c (x outside the scalp).
+bool outside_sphere(const std::vector<Eigen::Vector3d>& x, const Eigen::Vector3d& c, double reach) {
+  for (size_t i = 0; i + 1 < x.size(); ++i)
+    if (point_segment_distance(c, x[i], x[i + 1]).distance_squared < reach * reach) return false;
+  return true;
+}
+
+// Draws per rod before a sphere_hair family is declared too dense: the first half redraw the
+// phase only, the rest the root as well.
+constexpr int max_draws = 400;
+
 }  // namespace
 
 RodSet build_rods(const SceneSpec& spec) {
@@ -65,17 +124,46 @@ RodSet build_rods(const SceneSpec& spec) {
     std::vector<double> phases;                                       // helix phase per rod
     if (f.shape == RodShape::sphere_hair) {
       // Area-uniform roots on the cap: cos(polar angle) uniform in [cos(coverage), 1]; curls
-      // with a uniformly random phase about their normal.
+      // with a uniformly random phase about their normal. A rod closer than the radii plus
+      // `clearance` to a rod placed before it, or to the scalp, is drawn again: its phase
+      // first, then its root too. A rod placed at its first draw uses the same random numbers
+      // as without the check.
       std::mt19937_64 rng(static_cast<std::uint64_t>(f.seed));
       std::uniform_real_distribution<double> u01(0.0, 1.0);
       const Eigen::Vector3d e1 = orthogonal(axis), e2 = axis.cross(e1);
-      const double c0 = std::cos(f.coverage_angle);
-      for (int r = 0; r < f.count; ++r) {
+      const double c0 = std::cos(f.coverage_angle), rod_r = f.material.radius;
+      const auto draw_root = [&] {
         const double c = c0 + (1 - c0) * u01(rng), sn = std::sqrt(std::max(0.0, 1 - c * c));
         const double az = 2 * std::numbers::pi * u01(rng);
         const Eigen::Vector3d n = c * axis + sn * (std::cos(az) * e1 + std::sin(az) * e2);
-        roots.emplace_back(f.sphere_center + (f.sphere_radius + f.material.radius) * n, n);
-        phases.push_back(2 * std::numbers::pi * u01(rng));
+        return std::make_pair(Eigen::Vector3d(f.sphere_center + (f.sphere_radius + rod_r) * n), n);
+      };
+      // The longest chord of a rest shape: the vertices are equally spaced in arc length.
+      const std::vector<Eigen::Vector3d> probe = centreline(f, Eigen::Vector3d::Zero(), axis);
+      double longest = 0;
+      for (size_t i = 0; i + 1 < probe.size(); ++i) longest = std::max(longest, (probe[i + 1] - probe[i]).norm());
+      SeedGrid grid(longest, 2 * rod_r + f.clearance);
+      // No rod inside the scalp. Its root vertex sits on it (at sphere_radius + r): allow rounding.
+      const double scalp_reach = (f.sphere_radius + rod_r) * (1 - 1e-12);
+      for (int r = 0; r < f.count; ++r) {
+        auto root = draw_root();
+        bool placed = false;
+        for (int d = 0; d < max_draws && !placed; ++d) {
+          if (d >= max_draws / 2) root = draw_root();
+          const double phase = 2 * std::numbers::pi * u01(rng);
+          const std::vector<Eigen::Vector3d> x = centreline(f, root.first, root.second, phase);
+          if (!grid.clear(x) || !outside_sphere(x, f.sphere_center, scalp_reach)) continue;
+          grid.add(x);
+          roots.push_back(root);
+          phases.push_back(phase);
+          placed = true;
+        }
+        if (!placed) {
+          errors.push_back(fmt::format("{}.clearance = {} m: after {} draws rod {} of {} still comes closer than the radii plus the clearance to one "
+                                       "of the {} rods before it, or enters the scalp; lower `count` or `clearance`, or enlarge `sphere_radius`",
+                                       p, f.clearance, max_draws, r, f.count, r));
+          break;
+        }
       }
     } else {
       if (f.count > 1 && !(f.spread.norm() > 1e-12)) {

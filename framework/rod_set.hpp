@@ -32,7 +32,7 @@ inline constexpr std::array<std::string_view, 3> rod_root_names = {"free", "vert
 enum class RodShape {
   straight,     ///< `count` parallel straight rods from `root` along `direction`, spaced by `spacing` along `spread`
   helix,        ///< like straight, each a helix of `curl_radius` and `curl_pitch` about `direction`
-  sphere_hair,  ///< `count` rods rooted on a sphere (`sphere_center`, `sphere_radius`), area-uniformly over the cap within `coverage_angle` of `direction`, growing along the normal; helices about the normal with a random phase when `curl_radius` > 0
+  sphere_hair,  ///< `count` rods rooted on a sphere (`sphere_center`, `sphere_radius`), area-uniformly over the cap within `coverage_angle` of `direction`, growing along the normal; helices about the normal with a random phase when `curl_radius` > 0; no two rods closer than `clearance` at rest
 };
 inline constexpr std::array<std::string_view, 3> rod_shape_names = {"straight", "helix", "sphere_hair"};
 
@@ -70,6 +70,7 @@ struct RodSpec {
   double sphere_radius = 0.09;         ///< [m]
   double coverage_angle = 1.5707963267948966;  ///< [rad] sphere_hair: half-angle of the seeded cap (pi/2: half the sphere)
   int seed = 1;                        ///< sphere_hair: random seed of the root positions
+  double clearance = 0;                ///< [m] sphere_hair: smallest gap at rest between the surfaces of two rods (no rod is ever seeded inside the scalp)
   RodRoot root_held = RodRoot::edge;   ///< how the roots are held
   Motion motion;                       ///< motion of the held roots (rigid, like an obstacle's)
   Eigen::Vector3d initial_velocity = Eigen::Vector3d::Zero();  ///< [m/s]
@@ -92,6 +93,10 @@ struct RodSpec {
     v.field("coverage_angle", coverage_angle,
             {Unit::angle, Range::open_closed(0, 3.141592653589793), "sphere_hair: half-angle of the seeded cap about `direction`"});
     v.field("seed", seed, {Unit::none, Range::ge(0), "sphere_hair: random seed of the roots"});
+    v.field("clearance", clearance,
+            {Unit::length, Range::ge(0),
+             "sphere_hair: smallest gap at rest between the surfaces of two rods of the family; a rod that would come closer to one "
+             "placed before it, or enter the scalp, is drawn again (phase, then root)"});
     v.choice("root_held", root_held, rod_root_names, "free, a pinned root vertex, or a clamped root edge");
     v.section("motion", motion);
     v.field("initial_velocity", initial_velocity, {Unit::velocity, Range::any(), "initial velocity of every vertex"});

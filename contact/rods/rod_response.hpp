@@ -41,12 +41,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <string_view>
 #include <utility>
 #include <vector>
 
 #include "contact/coulomb.hpp"
+#include "contact/detection/distance.hpp"
 #include "contact/rods/rod_detection.hpp"
 #include "contact/rods/rod_group_solver.hpp"
 #include "framework/concepts.hpp"
@@ -98,6 +100,7 @@ struct RodContactParams {
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
+  double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
   ContactSolver solver = ContactSolver::gauss_seidel;  ///< the contact solve of a group
   int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
   bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
@@ -126,6 +129,11 @@ struct RodContactParams {
     v.field("sp_max", sp_max, {Unit::none, Range::closed(1, 100000), "staggered projections: alternations per Newton iteration"});
     v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
+    v.field("overlap_tol", overlap_tol,
+            {Unit::none, Range::closed(0, 1),
+             "re-detection: two edges of a rod pair in contact (or their neighbours) that end the corrected step overlapping by more "
+             "than this fraction of r_a + r_b get a contact at their closest end points, normal from those points at the start of "
+             "the step (0: off; the contacts hold only at their own material points along their own normals)"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
     v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
@@ -216,9 +224,17 @@ class RodResponse {
         RodContactRows k;
         if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
       }
+      if (round > 0 && prm_.overlap_tol > 0) {
+        const std::vector<RodContact> extra = end_overlaps(curves);
+        for (const RodContact& c : extra) {
+          RodContactRows k;
+          if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
+        }
+      }
       if (added == 0) break;
       if (round > 0) {
         ++rep.redetections;
+        rep.redetected += static_cast<int>(added);
         if (round == prm_.redetections) {  // still new contacts after the last solve
           rep.status = Status::no_convergence;
           rep.message = fmt::format("{} new contacts after {} re-detections: the response keeps creating contacts", added, round);
@@ -265,6 +281,55 @@ class RodResponse {
 
  private:
   /// The same contact (the same features) found again by a later detection.
+  /// Edges of rod pairs in contact that end the corrected step q -> q + d (curves.x1)
+  /// overlapping by more than overlap_tol (r_a + r_b): a contact holds n^T (u_a - u_b) >= 0
+  /// at its own material points along its own normal, and a rotation or a slide of nearly
+  /// parallel curls brings other points through. Checked: each contact's edge pair and the
+  /// adjacent edges on both rods. A new contact sits at the closest end points, with the
+  /// normal of those material points at the start of the step (apart there, so no approach
+  /// along it keeps them apart); skipped when a known contact of these edges already sits
+  /// there with that normal (merge_fraction, merge_angle).
+  std::vector<RodContact> end_overlaps(const RodCurves& c) const {
+    std::vector<RodContact> out;
+    std::vector<std::array<int, 4>> seen;
+    const double cos_merge = std::cos(prm_.detection.merge_angle * std::numbers::pi / 180);
+    const size_t known = contacts_.size();
+    for (size_t q = 0; q < known; ++q) {
+      const RodContact& g = contacts_[q].geometry;
+      if (g.kind != RodContact::Kind::rod_rod) continue;
+      for (int da = -1; da <= 1; ++da)
+        for (int db = -1; db <= 1; ++db) {
+          int ra = g.rod_a, ea = g.edge_a + da, rb = g.rod_b, eb = g.edge_b + db;
+          if (ea < 0 || eb < 0 || ea >= c.num_edges(ra) || eb >= c.num_edges(rb)) continue;
+          if (std::pair(ra, ea) > std::pair(rb, eb)) std::swap(ra, rb), std::swap(ea, eb);
+          if (ra == rb && (!prm_.detection.self_contact || eb - ea < prm_.detection.self_skip)) continue;
+          const std::array<int, 4> key{ra, ea, rb, eb};
+          if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
+          seen.push_back(key);
+          const int ia = c.first[ra] + ea, ib = c.first[rb] + eb;
+          const double reach = c.radius[ra] + c.radius[rb];
+          const auto end = detection::segment_segment_distance(c.x1[ia], c.x1[ia + 1], c.x1[ib], c.x1[ib + 1]);
+          if (!(end.distance_squared < std::pow(reach * (1 - prm_.overlap_tol), 2))) continue;
+          RodContact k;
+          k.rod_a = ra, k.edge_a = ea, k.s_a = end.s, k.rod_b = rb, k.edge_b = eb, k.s_b = end.t;
+          const Eigen::Vector3d pa = (1 - end.s) * c.x0[ia] + end.s * c.x0[ia + 1], pb = (1 - end.t) * c.x0[ib] + end.t * c.x0[ib + 1];
+          const double start = (pa - pb).norm();
+          if (!(start > 1e-3 * reach)) continue;  // these points already met at the start: no normal to keep
+          k.normal = (pa - pb) / start;
+          k.gap = start - reach;
+          const bool held = std::any_of(contacts_.begin(), contacts_.end(), [&](const RodContactRows& r) {
+            const RodContact& h = r.geometry;
+            if (!same_pair(h, k)) return false;
+            const double la = (c.x0[ia + 1] - c.x0[ia]).norm(), lb = (c.x0[ib + 1] - c.x0[ib]).norm();
+            return std::abs(h.s_a - k.s_a) * la < prm_.detection.merge_fraction * reach &&
+                   std::abs(h.s_b - k.s_b) * lb < prm_.detection.merge_fraction * reach && h.normal.dot(k.normal) > cos_merge;
+          });
+          if (!held) out.push_back(k);
+        }
+    }
+    return out;
+  }
+
   static bool same_pair(const RodContact& a, const RodContact& b) {
     return a.kind == b.kind && a.rod_a == b.rod_a && a.edge_a == b.edge_a && a.rod_b == b.rod_b && a.edge_b == b.edge_b &&
            a.obstacle == b.obstacle && a.obstacle_edge == b.obstacle_edge && (!a.vertex_contact() || a.s_a == b.s_a);

@@ -1,10 +1,10 @@
-#include "contact/detection/distance.hpp"
+#include "framework/distance.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <limits>
 
-namespace weft::contact::detection {
+namespace weft {
 
 namespace {
 using Eigen::Vector3d;
@@ -112,4 +112,4 @@ SegmentSegment segment_segment_distance(const Vector3d& a0, const Vector3d& a1, 
   return best;
 }
 
-}  // namespace weft::contact::detection
+}  // namespace weft
