@@ -228,7 +228,7 @@ class RodResponse {
         const std::vector<RodContact> extra = end_overlaps(curves);
         for (const RodContact& c : extra) {
           RodContactRows k;
-          if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
+          if (build_rows(sys, c, k, true)) contacts_.push_back(std::move(k)), ++added;
         }
       }
       if (added == 0) break;
@@ -287,8 +287,11 @@ class RodResponse {
   /// parallel curls brings other points through. Checked: each contact's edge pair and the
   /// adjacent edges on both rods. A new contact sits at the closest end points, with the
   /// normal of those material points at the start of the step (apart there, so no approach
-  /// along it keeps them apart); skipped when a known contact of these edges already sits
-  /// there with that normal (merge_fraction, merge_angle).
+  /// along it keeps them apart; the constraint lets them close that start gap, n^T d >=
+  /// -gap, see build_rows); skipped when a known contact of these edges already sits there
+  /// with that normal (merge_fraction, merge_angle). Skipping wherever a known contact is
+  /// within r_a + r_b of both points instead let 16 pairs through on the 250-rod ball: the
+  /// crossings happen at known contacts whose normal has turned.
   std::vector<RodContact> end_overlaps(const RodCurves& c) const {
     std::vector<RodContact> out;
     std::vector<std::array<int, 4>> seen;
@@ -335,8 +338,11 @@ class RodResponse {
            a.obstacle == b.obstacle && a.obstacle_edge == b.obstacle_edge && (!a.vertex_contact() || a.s_a == b.s_a);
   }
   /// G_k, b_k and mu_k of a detected contact; false when every stencil vertex is held.
+  /// `full_gap`: n^T d >= -gap whatever `gap` says (the contacts of end_overlaps, whose
+  /// points are apart at the start: with n^T d >= 0 they could not approach at all, and
+  /// dozens of such constraints on a hair ball locked a group until ADONIS ran away).
   template <class System>
-  bool build_rows(System& sys, const RodContact& c, RodContactRows& k) const {
+  bool build_rows(System& sys, const RodContact& c, RodContactRows& k, bool full_gap = false) const {
     k.geometry = c;
     const Eigen::Vector3d n = c.normal.normalized();
     const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
@@ -375,7 +381,7 @@ class RodResponse {
     }
     if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement;
     k.b = s * F.transpose() * scripted;
-    if (prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) k.b[0] += s * c.gap;
+    if (full_gap || prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) k.b[0] += s * c.gap;
     return true;
   }
 
