@@ -43,6 +43,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <set>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -280,7 +281,6 @@ class RodResponse {
   }
 
  private:
-  /// The same contact (the same features) found again by a later detection.
   /// Edges of rod pairs in contact that end the corrected step q -> q + d (curves.x1)
   /// overlapping by more than overlap_tol (r_a + r_b): a contact holds n^T (u_a - u_b) >= 0
   /// at its own material points along its own normal, and a rotation or a slide of nearly
@@ -294,7 +294,7 @@ class RodResponse {
   /// crossings happen at known contacts whose normal has turned.
   std::vector<RodContact> end_overlaps(const RodCurves& c) const {
     std::vector<RodContact> out;
-    std::vector<std::array<int, 4>> seen;
+    std::set<std::array<int, 4>> seen;
     const double cos_merge = std::cos(prm_.detection.merge_angle * std::numbers::pi / 180);
     const size_t known = contacts_.size();
     for (size_t q = 0; q < known; ++q) {
@@ -306,9 +306,7 @@ class RodResponse {
           if (ea < 0 || eb < 0 || ea >= c.num_edges(ra) || eb >= c.num_edges(rb)) continue;
           if (std::pair(ra, ea) > std::pair(rb, eb)) std::swap(ra, rb), std::swap(ea, eb);
           if (ra == rb && (!prm_.detection.self_contact || eb - ea < prm_.detection.self_skip)) continue;
-          const std::array<int, 4> key{ra, ea, rb, eb};
-          if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
-          seen.push_back(key);
+          if (!seen.insert({ra, ea, rb, eb}).second) continue;
           const int ia = c.first[ra] + ea, ib = c.first[rb] + eb;
           const double reach = c.radius[ra] + c.radius[rb];
           const auto end = detection::segment_segment_distance(c.x1[ia], c.x1[ia + 1], c.x1[ib], c.x1[ib + 1]);
@@ -333,14 +331,16 @@ class RodResponse {
     return out;
   }
 
+  /// The same contact (the same features) found again by a later detection.
   static bool same_pair(const RodContact& a, const RodContact& b) {
     return a.kind == b.kind && a.rod_a == b.rod_a && a.edge_a == b.edge_a && a.rod_b == b.rod_b && a.edge_b == b.edge_b &&
            a.obstacle == b.obstacle && a.obstacle_edge == b.obstacle_edge && (!a.vertex_contact() || a.s_a == b.s_a);
   }
   /// G_k, b_k and mu_k of a detected contact; false when every stencil vertex is held.
   /// `full_gap`: n^T d >= -gap whatever `gap` says (the contacts of end_overlaps, whose
-  /// points are apart at the start: with n^T d >= 0 they could not approach at all, and
-  /// dozens of such constraints on a hair ball locked a group until ADONIS ran away).
+  /// points are apart at the start: with n^T d >= 0 they could not approach at all, and on
+  /// the 250-rod ball ADONIS then failed at step 14, an iterate folding an edge; with the gap
+  /// the run held).
   template <class System>
   bool build_rows(System& sys, const RodContact& c, RodContactRows& k, bool full_gap = false) const {
     k.geometry = c;

@@ -245,7 +245,7 @@ TEST_SUITE("slow") {
       }
       return c;
     };
-    const Counts once = run("0", "0.01"), re = run("30", "0.01"), new_only = run("30", "0");
+    const Counts once = run("0", "0.01"), re = run("30", "0.01"), new_only = run("30", "0");  // the scene's default is 0
     MESSAGE("rod pairs overlapping by more than 1 % / 50 % of their radius sum, worst after each of 10 steps: "
             << once.shallow << " / " << once.deep << " with one detection per step, " << new_only.shallow << " / " << new_only.deep
             << " re-detecting new pairs only, " << re.shallow << " / " << re.deep << " re-detecting new pairs and end overlaps of known ones");
@@ -263,11 +263,9 @@ TEST_SUITE("slow") {
     // default `contact.predictor = relinearized` it failed at step 4 (the modified-Newton
     // predictor ran a group away); with it and the scene's projected re-linearisations every
     // step holds within the stretch tolerance (docs/rods.md).
-    // Without the end-overlap contacts (`contact.overlap_tol = 0`): they take 3-4 times the
-    // re-detection rounds, which would make this test run about 45 minutes. The test above
-    // covers them for 10 steps, and bench/results/rods/figure_9_12_clearance/ for 30 steps
-    // through the start and stop of a turn.
-    auto sim = make_simulator(load_scene(scene_path("hairball_250.json"), {"time.duration=0.8", "contact.overlap_tol=0"}));
+    // The scene runs without end-overlap contacts (its comment says why); the test above
+    // covers them.
+    auto sim = make_simulator(load_scene(scene_path("hairball_250.json"), {"time.duration=0.8"}));
     const Scene& scene = sim->scene();
     double strain = 0, max_extension = 0;
     long long contacts = 0;
