@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <type_traits>
 #include <vector>
 
 #include "framework/block_csr.hpp"
@@ -69,21 +70,32 @@ struct BsrView {
   const double* val = nullptr;
   const int* src = nullptr;  ///< square views only: one-triangle storage map (nullptr: block k is stored at k)
   VertexFilterView filter{};  ///< 3x3 views only: read as the prefiltered operator (see VertexFilterView)
+  /// One-triangle views only: the stored values in single precision (then val == nullptr);
+  /// every read converts them to double.
+  const float* valf = nullptr;
 
   int nnz() const { return rows ? row_ptr[rows] : 0; }
   /// Whether block k of the pattern is the transpose of its stored block.
   bool transposed(std::ptrdiff_t k) const { return src && src[k] < 0; }
-  /// The stored block behind block k of the pattern (transpose it when `transposed(k)`).
+  /// Index of the stored block behind block k of the pattern.
+  std::ptrdiff_t stored_index(std::ptrdiff_t k) const { return src ? (src[k] >= 0 ? src[k] : ~src[k]) : k; }
+  /// The stored block behind block k of the pattern (transpose it when `transposed(k)`);
+  /// double storage only.
   Eigen::Map<const BlockOf<R, C>> stored(std::ptrdiff_t k) const {
-    const std::ptrdiff_t s = src ? (src[k] >= 0 ? src[k] : ~src[k]) : k;
-    return Eigen::Map<const BlockOf<R, C>>(val + static_cast<std::ptrdiff_t>(R * C) * s);
+    return Eigen::Map<const BlockOf<R, C>>(val + static_cast<std::ptrdiff_t>(R * C) * stored_index(k));
   }
   /// Block k of the pattern: a map of the storage for rectangular views, a copy for square
-  /// ones (which may be stored by one triangle).
+  /// ones (which may be stored by one triangle, in double or single precision).
   auto block(std::ptrdiff_t k) const {
     if constexpr (R == C) {
-      if (transposed(k)) return BlockOf<R, C>(stored(k).transpose());
-      return BlockOf<R, C>(stored(k));
+      BlockOf<R, C> b;
+      if (valf)
+        b = Eigen::Map<const Eigen::Matrix<float, R, C, Eigen::RowMajor>>(valf + static_cast<std::ptrdiff_t>(R * C) * stored_index(k))
+                .template cast<double>();
+      else
+        b = stored(k);
+      if (transposed(k)) b.transposeInPlace();
+      return b;
     } else {
       return stored(k);
     }
@@ -127,13 +139,21 @@ inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, co
   }
   if constexpr (R == C) {
     if (A.src) {
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-        const int s = A.src[k];
-        if (s >= 0)
-          acc.noalias() += Blk(A.val + S * s) * In(x + C * A.col[k]);
-        else
-          acc.noalias() += Blk(A.val + S * ~s).transpose() * In(x + C * A.col[k]);
-      }
+      auto sum = [&](const auto* val) {  // double or single-precision storage, products in double
+        using T = std::remove_cv_t<std::remove_pointer_t<decltype(val)>>;
+        using BlkT = Eigen::Map<const Eigen::Matrix<T, R, C, Eigen::RowMajor>>;
+        for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+          const int s = A.src[k];
+          if (s >= 0)
+            acc.noalias() += BlkT(val + S * s).template cast<double>() * In(x + C * A.col[k]);
+          else
+            acc.noalias() += BlkT(val + S * ~s).transpose().template cast<double>() * In(x + C * A.col[k]);
+        }
+      };
+      if (A.valf)
+        sum(A.valf);
+      else
+        sum(A.val);
       return acc;
     }
   }
@@ -222,9 +242,10 @@ class BlockMatrix {
 
 /// Symmetric B x B block matrix stored by its upper triangle (diagonal included), with the
 /// full pattern kept for the algorithms that walk rows (strength, aggregation, P, Galerkin):
-/// per block of the pattern 8 bytes (column, `src`), per stored block B*B doubles. A full
-/// BlockMatrix of a coarse SA operator (6x6 blocks) holds almost twice the values. The
-/// pattern must be structurally symmetric with every diagonal block present.
+/// per block of the pattern 8 bytes (column, `src`), per stored block B*B doubles, or floats
+/// after `set_single(true)` (every read converts to double). A full BlockMatrix of a coarse
+/// SA operator (6x6 blocks) holds almost twice the values. The pattern must be structurally
+/// symmetric with every diagonal block present.
 template <int B>
 class SymBlockMatrix {
  public:
@@ -253,26 +274,59 @@ class SymBlockMatrix {
   int rows() const { return rows_; }
   int cols() const { return rows_; }
   int nnz() const { return static_cast<int>(col_.size()); }  ///< blocks of the full pattern
-  int stored_blocks() const { return static_cast<int>(val_.size() / (B * B)); }
+  int stored_blocks() const { return static_cast<int>((single_ ? valf_.size() : val_.size()) / (B * B)); }
+  /// Store the values in single (true) or double precision, zeroed; the other storage is freed.
+  void set_single(bool single) {
+    const std::size_t n = static_cast<std::size_t>(stored_blocks()) * (B * B);
+    single_ = single;
+    if (single) {
+      std::vector<double>().swap(val_);
+      valf_.assign(n, 0.0f);
+    } else {
+      std::vector<float>().swap(valf_);
+      val_.assign(n, 0.0);
+    }
+  }
+  bool single() const { return single_; }
+  /// Index of the stored block of (i, i).
+  int diagonal_index(int i) const { return src_[find(i, i)]; }
+  /// Stored block s, in double, for either precision.
+  Block stored_value(std::ptrdiff_t s) const {
+    if (single_)
+      return Eigen::Map<const Eigen::Matrix<float, B, B, Eigen::RowMajor>>(valf_.data() + B * B * s).template cast<double>();
+    return Eigen::Map<const Block>(val_.data() + B * B * s);
+  }
+  /// Write stored block s (rounded to float in single precision).
+  void store(std::ptrdiff_t s, const Block& b) {
+    if (single_)
+      Eigen::Map<Eigen::Matrix<float, B, B, Eigen::RowMajor>>(valf_.data() + B * B * s) = b.template cast<float>();
+    else
+      Eigen::Map<Block>(val_.data() + B * B * s) = b;
+  }
   const std::vector<int>& row_ptr() const { return row_ptr_; }
   const std::vector<int>& col() const { return col_; }
   /// Per block of the pattern: stored index (>= 0, upper) or ~stored index of its transpose.
   const std::vector<int>& src() const { return src_; }
   std::vector<double>& values() { return val_; }
   const std::vector<double>& values() const { return val_; }
-  /// Stored block s (upper triangle).
+  /// Stored block s (upper triangle); double storage only.
   Eigen::Map<Block> stored(std::ptrdiff_t s) { return Eigen::Map<Block>(val_.data() + B * B * s); }
-  BsrView<B, B> view() const { return {rows_, rows_, row_ptr_.data(), col_.data(), val_.data(), src_.data()}; }
+  BsrView<B, B> view() const {
+    BsrView<B, B> v{rows_, rows_, row_ptr_.data(), col_.data(), single_ ? nullptr : val_.data(), src_.data()};
+    if (single_) v.valf = valf_.data();
+    return v;
+  }
   /// Index of block (i, j) of the pattern or -1. O(log row length).
   int find(int i, int j) const {
     const auto first = col_.begin() + row_ptr_[i], last = col_.begin() + row_ptr_[i + 1];
     const auto it = std::lower_bound(first, last, j);
     return (it != last && *it == j) ? static_cast<int>(it - col_.begin()) : -1;
   }
-  /// The diagonal block of row i (stored; every row holds it).
-  Eigen::Map<Block> diagonal(int i) { return stored(src_[find(i, i)]); }
+  /// The diagonal block of row i (stored; every row holds it); double storage only.
+  Eigen::Map<Block> diagonal(int i) { return stored(diagonal_index(i)); }
   std::size_t memory_bytes() const {
-    return (row_ptr_.capacity() + col_.capacity() + src_.capacity()) * sizeof(int) + val_.capacity() * sizeof(double);
+    return (row_ptr_.capacity() + col_.capacity() + src_.capacity()) * sizeof(int) + val_.capacity() * sizeof(double) +
+           valf_.capacity() * sizeof(float);
   }
   Eigen::MatrixXd to_dense() const {
     Eigen::MatrixXd D = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(B) * rows_, static_cast<Eigen::Index>(B) * rows_);
@@ -287,6 +341,8 @@ class SymBlockMatrix {
   int rows_ = 0;
   std::vector<int> row_ptr_{0}, col_, src_;
   std::vector<double> val_;
+  std::vector<float> valf_;
+  bool single_ = false;
 };
 
 /// y = A x (y sized R * rows). Parallel over block rows.
@@ -451,12 +507,14 @@ struct Galerkin {
     return SymBlockMatrix<C>(nc, std::move(ptr), std::move(col));
   }
 
-  /// Ac's values (Ac from `symbolic` for these patterns of A and P). Only the upper blocks
-  /// (J >= I) are formed, so Ac is exactly symmetric.
+  /// Ac's values (Ac from `symbolic` for these patterns of A and P, in the precision Ac
+  /// stores). Only the upper blocks (J >= I) are formed, each in double and rounded once when
+  /// stored, and the diagonal blocks are symmetrised (their (a, b) and (b, a) entries come
+  /// from different sums), so Ac is exactly symmetric.
   static void numeric(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT, SymBlockMatrix<C>& Ac) {
     using TBlock = Eigen::Matrix<double, C, B>;
+    using CBlock = BlockOf<C, C>;
     const int nc = P.cols;
-    double* out_values = Ac.values().data();
     const int* ac_ptr = Ac.row_ptr().data();
     const int* ac_col = Ac.col().data();
     const int* ac_src = Ac.src().data();
@@ -464,6 +522,7 @@ struct Galerkin {
     {
       std::vector<int> slot(A.rows, -1), pos(nc, -1), fine;
       std::vector<TBlock, Eigen::aligned_allocator<TBlock>> T;
+      std::vector<CBlock, Eigen::aligned_allocator<CBlock>> out;  // row I's stored blocks, in order
 #pragma omp for schedule(dynamic, 64)
       for (int I = 0; I < nc; ++I) {
         fine.clear();
@@ -482,20 +541,30 @@ struct Galerkin {
             T[slot[j]].noalias() += PiT * A.block(i, k);
           }
         }
-        // Stored (upper) blocks of row I; the lower ones are the transposes of other rows'.
+        // Stored (upper) blocks of row I, numbered consecutively from its diagonal block;
+        // the lower ones are the transposes of other rows'.
+        int first = -1, count = 0;
         for (int k = ac_ptr[I]; k < ac_ptr[I + 1]; ++k) {
-          pos[ac_col[k]] = ac_src[k] >= 0 ? ac_src[k] : -1;
-          if (ac_src[k] >= 0) Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * ac_src[k]).setZero();
+          if (ac_src[k] < 0) {
+            pos[ac_col[k]] = -1;
+            continue;
+          }
+          if (first < 0) first = ac_src[k];
+          pos[ac_col[k]] = ac_src[k] - first;
+          ++count;
         }
+        if (static_cast<int>(out.size()) < count) out.resize(count);
+        for (int t = 0; t < count; ++t) out[t].setZero();
         for (std::size_t s = 0; s < fine.size(); ++s) {
           const int j = fine[s];
           for (int k = P.row_ptr[j]; k < P.row_ptr[j + 1]; ++k) {
             const int dst = pos[P.col[k]];
-            if (dst >= 0)
-              Eigen::Map<BlockOf<C, C>>(out_values + static_cast<std::ptrdiff_t>(C * C) * dst).noalias() += T[s] * P.stored(k);
+            if (dst >= 0) out[dst].noalias() += T[s] * P.stored(k);
           }
           slot[j] = -1;
         }
+        out[0] = (0.5 * (out[0] + out[0].transpose())).eval();  // the diagonal block (col I) comes first
+        for (int t = 0; t < count; ++t) Ac.store(first + t, out[t]);
       }
     }
   }

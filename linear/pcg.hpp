@@ -261,7 +261,6 @@ class Ppcg {
   detail::PreconditionerSlot<P> slot_;
   PrefilteredSystem pre_;
   detail::KrylovWork work_;
-  Eigen::VectorXd y_;
   const BlockCsr* A_ = nullptr;     // unfiltered
   const BlockCsr* Ahat_ = nullptr;  // A itself without constraints
   const Eigen::VectorXd* x_star_ = nullptr;

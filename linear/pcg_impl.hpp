@@ -226,25 +226,22 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const Eigen::VectorXd& chat = pre_.rhs(b);  // S (b - A z), or b itself
   {
     ScopedTimer t(rep.solve_seconds);
-    // y0 = 0 (thesis fidelity) or, warm, S (x_in - z).
+    // y0 = 0 (thesis fidelity) or, warm, S (x_in - z). y is iterated in x's storage.
     if (prm_.warm_start && x.size() == b.size()) {
-      y_ = x;
       if (c) {
-        y_ -= c->target();
-        c->filter(y_);
+        x -= c->target();
+        c->filter(x);
       }
     } else {
-      y_.setZero(b.size());
+      x.setZero(b.size());
     }
     work_.resize(b.size());
-    detail::pcg(*Ahat_, chat, y_, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep, filter_);
-    x = y_;
+    detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep, filter_);
     pre_.finish(x);  // x = z + S y: constraints to round-off
   }
   rep.prefilter_seconds = pre_.take_seconds();
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
-  rep.memory_bytes = sizeof(double) * static_cast<std::size_t>(y_.size());
-  if (c) rep.memory_bytes += pre_.bytes();
+  rep.memory_bytes = c ? pre_.bytes() : 0;
   detail::fill_common(slot_, work_, rep);
   return rep;
 }

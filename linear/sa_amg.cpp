@@ -501,6 +501,7 @@ namespace {
 /// One level: its operator, smoother data, and the transfer to the next level.
 template <int B>
 struct Level {
+  static constexpr int block = B;
   BsrView<B, B> external;       // the caller's matrix (fine level, reuse != frozen)
   // Galerkin result (coarse: symmetric, upper triangle stored) or private copy (fine, frozen).
   std::conditional_t<(B == 6), SymBlockMatrix<6>, BlockMatrix<B, B>> own;
@@ -508,7 +509,8 @@ struct Level {
   BsrView<B, B> A() const { return uses_external ? external : own.view(); }
   int n() const { return uses_external ? external.rows : own.rows(); }
 
-  std::vector<double> Dinv;     // n blocks B x B
+  std::vector<double> Dinv;     // n blocks B x B (setup; freed when Dinvf holds them)
+  std::vector<float> Dinvf;     // single_block_inverses: the smoother's copy
   double ritz = 0, lambda = 0;
 
   // Coarsening structure (kept under reuse = aggregates).
@@ -522,6 +524,14 @@ struct Level {
   int deficient = 0;
   bool coarsest = false;
 
+  // implicit_prolongator (level 0): P = Z (I - omega D^-1 A_f) Phat is applied from A and
+  // never stored (Z zeroes the rows of special nodes). aggs.node_agg is kept.
+  bool implicit = false;
+  double omega = 0;
+  std::vector<float> Qf;                   // Phat: one B x 6 block per node (zero on special nodes)
+  std::vector<int> agg_ptr, agg_nodes;     // the nodes of each aggregate, by increasing index
+  std::vector<std::uint64_t> strong_bits;  // filtered smoothing: bit k = block k of A is strong
+
   // Coarsest solve.
   int direct = 0;  // 0: smoother only, 1: LLT, 2: LDLT
   Eigen::LLT<Eigen::MatrixXd> llt;
@@ -533,7 +543,7 @@ struct Level {
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() + vb(Pf) +
+    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() + vb(Pf) +
                     PT.memory_bytes() + vb(dummy);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -612,6 +622,18 @@ void make_coarsest(Level<B>& L, const SaAmg::Params& prm) {
   if (L.ldlt.info() == Eigen::Success) L.direct = 2;
 }
 
+/// The smoother's block inverses in the precision the cycle reads (single_block_inverses):
+/// called once the setup of the level no longer needs them in double.
+template <int B>
+void keep_inverses(Level<B>& L, const SaAmg::Params& prm) {
+  if (prm.single_block_inverses) {
+    L.Dinvf.assign(L.Dinv.begin(), L.Dinv.end());
+    std::vector<double>().swap(L.Dinv);
+  } else {
+    std::vector<float>().swap(L.Dinvf);
+  }
+}
+
 double bound_of(const sa::LanczosResult& r, LambdaBound b) {
   switch (b) {
     case LambdaBound::ritz_factor: return 1.1 * r.ritz;
@@ -671,12 +693,14 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       L.Pf = {};
       L.PT = {};
       make_coarsest(L, prm);
+      keep_inverses(L, prm);
       ctx.stats.push_back(st);
       return Status::success;
     }
   } else if (L.coarsest) {
     ScopedTimer t(T.other);
     make_coarsest(L, prm);
+    keep_inverses(L, prm);
     ctx.stats.push_back(st);
     return Status::success;
   }
@@ -694,18 +718,45 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   L.deficient = tent.deficient;
   st.deficient = tent.deficient;
   const std::vector<std::uint8_t>* strong = prm.filtered_smoothing ? &L.strong : nullptr;
+  const double omega = 4.0 / (3.0 * L.lambda);
+  L.implicit = prm.implicit_prolongator && index == 0;
   {
     ScopedTimer t(T.smoothing);
-    if (!reuse) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
+    // An implicit P is formed here for the Galerkin product and freed after it.
+    if (!reuse || L.P.rows() == 0) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if single_prolongator freed it
-    sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, 4.0 / (3.0 * L.lambda), L.P);
+    sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
-    if (!reuse) L.PT.build(L.P.view());
-    if (prm.single_prolongator)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
+    if (!reuse || L.PT.ptr.size() <= 1) L.PT.build(L.P.view());
+    if (prm.single_prolongator && !L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
       for (double& v : L.P.values()) v = static_cast<double>(static_cast<float>(v));
   }
   st.nnz_p = L.P.nnz();
+  if (L.implicit) {
+    ScopedTimer t(T.other);
+    L.omega = omega;
+    L.Qf.assign(tent.Q.begin(), tent.Q.end());
+    const std::vector<int>& agg = L.aggs.node_agg;
+    L.agg_ptr.assign(L.aggs.count + 1, 0);
+    for (int i = 0; i < n; ++i)
+      if (agg[i] >= 0) ++L.agg_ptr[agg[i] + 1];
+    for (int J = 0; J < L.aggs.count; ++J) L.agg_ptr[J + 1] += L.agg_ptr[J];
+    L.agg_nodes.assign(L.agg_ptr.back(), 0);
+    std::vector<int> fill(L.agg_ptr.begin(), L.agg_ptr.end() - 1);
+    for (int i = 0; i < n; ++i)
+      if (agg[i] >= 0) L.agg_nodes[fill[agg[i]]++] = i;
+    L.strong_bits.assign(strong ? (static_cast<std::size_t>(A.nnz()) + 63) / 64 : 0, 0);
+    if (strong)
+      for (int k = 0; k < A.nnz(); ++k)
+        if (L.strong[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
+  } else {
+    L.Qf = {};
+    L.agg_ptr = {};
+    L.agg_nodes = {};
+    L.strong_bits = {};
+  }
   tent.Q = {};
+  keep_inverses(L, prm);
 
   const int nc = L.aggs.count;
   if (!reuse) {
@@ -714,31 +765,37 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   Level<6>& C = ctx.coarse[index];
   {
     ScopedTimer t(T.galerkin);
-    if (!reuse) C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT);
-    Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);
+    if (!reuse) {
+      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT);
+      C.own.set_single(prm.single_coarse_operators);
+    }
+    Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);  // exactly symmetric
     // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
     // diagonal so A_c stays SPD; they are decoupled from everything else.
-    // Off-diagonal blocks are stored once, so A_c is symmetric up to its diagonal blocks,
-    // whose (a, b) and (b, a) entries come from different sums: symmetrise those exactly.
-    for (int I = 0; I < nc; ++I) {
-      auto D = C.own.diagonal(I);
-      D = (0.5 * (D + D.transpose())).eval();
-    }
     double sum = 0;
     long count = 0;
     for (int I = 0; I < nc; ++I) {
-      const auto D = C.own.diagonal(I);
+      const auto D = C.own.stored_value(C.own.diagonal_index(I));
       for (int c = 0; c < 6; ++c)
         if (!L.dummy[6 * I + c]) sum += D(c, c), ++count;
     }
     const double mean = count > 0 ? sum / count : 1.0;
     for (int I = 0; I < nc; ++I) {
-      auto D = C.own.diagonal(I);
+      bool any = false;
+      for (int c = 0; c < 6; ++c) any = any || L.dummy[6 * I + c];
+      if (!any) continue;
+      const int s = C.own.diagonal_index(I);
+      auto D = C.own.stored_value(s);
       for (int c = 0; c < 6; ++c)
         if (L.dummy[6 * I + c]) D(c, c) = mean;
+      C.own.store(s, D);
     }
   }
-  if (prm.single_prolongator) {  // the cycle reads P from here on: keep it in float only
+  if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
+    L.P.clear();
+    L.PT = {};
+    L.Pf = {};
+  } else if (prm.single_prolongator) {  // the cycle reads P from here on: keep it in float only
     L.Pf.assign(L.P.values().begin(), L.P.values().end());
     std::vector<double>().swap(L.P.values());
   } else {
@@ -749,7 +806,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     // it back now (only `aggregates` refreshes values on the kept structure).
     std::vector<std::uint8_t>().swap(L.strong);
     std::vector<std::uint8_t>().swap(L.special);
-    std::vector<int>().swap(L.aggs.node_agg);
+    if (!L.implicit) std::vector<int>().swap(L.aggs.node_agg);
     std::vector<std::uint8_t>().swap(L.dummy);
   }
   L.coarsest = false;
@@ -853,14 +910,24 @@ int SaAmg::levels() const {
 
 namespace {
 
-/// d = c1 d + c2 Dinv res; x += d (or x = d when `assign`). Parallel over block rows.
-template <int B>
-void chebyshev_update(int n, const double* Dinv, const double* res, double c1, double c2, double* d, double* x,
+/// f(the smoother's block inverses), in double or (single_block_inverses) float.
+template <int B, class F>
+void with_inverses(const Level<B>& L, F&& f) {
+  if (L.Dinvf.empty())
+    f(L.Dinv.data());
+  else
+    f(L.Dinvf.data());
+}
+
+/// d = c1 d + c2 Dinv res; x += d (or x = d when `assign`), Dinv in double or float.
+/// Parallel over block rows.
+template <int B, class T>
+void chebyshev_update(int n, const T* Dinv, const double* res, double c1, double c2, double* d, double* x,
                       bool assign) {
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i) {
     Eigen::Map<Vec<B>> di(d + B * i), xi(x + B * i);
-    const Eigen::Map<const BlockOf<B, B>> Di(Dinv + static_cast<std::ptrdiff_t>(B * B) * i);
+    const Mat<B> Di = value_block<B, B>(Dinv, i);
     const Eigen::Map<const Vec<B>> ri(res + B * i);
     if (c1 == 0.0)
       di.noalias() = c2 * (Di * ri);
@@ -883,21 +950,23 @@ void chebyshev(const Level<B>& L, const SaAmg::Params& prm, const double* f, dou
   const double theta = 0.5 * (a + b), delta = 0.5 * (b - a), sigma = theta / delta;
   double* res = L.res.data();
   double* d = L.d.data();
-  const double* Dinv = L.Dinv.data();
-  double rho = 1.0 / sigma;
-  if (zero_guess) {
-    chebyshev_update<B>(n, Dinv, f, 0.0, 1.0 / theta, d, x, /*assign=*/true);
-  } else {
-    residual(A, f, x, res);
-    chebyshev_update<B>(n, Dinv, res, 0.0, 1.0 / theta, d, x, false);
-  }
-  for (int j = 2; j <= prm.chebyshev_degree; ++j) {
-    // res <- res - A d (the first time from f when the guess was zero).
-    residual(A, (j == 2 && zero_guess) ? f : res, d, res);
-    const double rho_new = 1.0 / (2.0 * sigma - rho);
-    chebyshev_update<B>(n, Dinv, res, rho_new * rho, 2.0 * rho_new / delta, d, x, false);
-    rho = rho_new;
-  }
+  auto run = [&](const auto* Dinv) {
+    double rho = 1.0 / sigma;
+    if (zero_guess) {
+      chebyshev_update<B>(n, Dinv, f, 0.0, 1.0 / theta, d, x, /*assign=*/true);
+    } else {
+      residual(A, f, x, res);
+      chebyshev_update<B>(n, Dinv, res, 0.0, 1.0 / theta, d, x, false);
+    }
+    for (int j = 2; j <= prm.chebyshev_degree; ++j) {
+      // res <- res - A d (the first time from f when the guess was zero).
+      residual(A, (j == 2 && zero_guess) ? f : res, d, res);
+      const double rho_new = 1.0 / (2.0 * sigma - rho);
+      chebyshev_update<B>(n, Dinv, res, rho_new * rho, 2.0 * rho_new / delta, d, x, false);
+      rho = rho_new;
+    }
+  };
+  with_inverses(L, run);
 }
 
 template <int B>
@@ -925,6 +994,110 @@ void with_prolongator_values(const Level<B>& L, F&& f) {
     f(L.Pf.data());
 }
 
+/// Row i of A_f w (transpose: of A_f^T w), A_f the matrix P was smoothed with: A, with the
+/// weak blocks lumped into the diagonal when the level keeps strong flags. A_f's off-diagonal
+/// blocks are symmetric, its lumped diagonal blocks are not: A_f^T's diagonal block i is the
+/// diagonal block of A plus sum over weak j of A_ij^T. Read through the vertex filters of a
+/// prefiltered fine level as the setup read it.
+template <int B>
+Vec<B> smoothing_row(const Level<B>& L, const BsrView<B, B>& A, int i, const double* w, bool transpose) {
+  using In = Eigen::Map<const Vec<B>>;
+  const std::uint64_t* bits = L.strong_bits.empty() ? nullptr : L.strong_bits.data();
+  auto kept = [&](int k, int j) { return j == i || !bits || ((bits[k >> 6] >> (k & 63)) & 1u); };
+  Vec<B> acc = Vec<B>::Zero();
+  if constexpr (B == 3) {
+    if (!A.src && !A.valf) {  // the fine level: 3x3 blocks in double, maybe filtered
+      const VertexFilterView& F = A.filter;
+      const int si = F.empty() ? -1 : F.slot[i];
+      Vec<3> lumped_t = Vec<3>::Zero();  // transpose: sum over weak j of Ahat_ij^T w_i = S_j A_ij^T S_i w_i
+      const Vec<3> Swi = si >= 0 ? Vec<3>(F.filter(si) * In(w + 3 * i)) : Vec<3>(In(w + 3 * i));
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+        const int j = A.col[k], sj = F.empty() ? -1 : F.slot[j];
+        const Eigen::Map<const BlockOf<3, 3>> Aij(A.val + 9 * static_cast<std::ptrdiff_t>(k));
+        if (transpose && !kept(k, j)) {
+          const Vec<3> v = Aij.transpose() * Swi;
+          lumped_t += sj >= 0 ? Vec<3>(F.filter(sj) * v) : v;
+          continue;
+        }
+        const In y(w + 3 * (kept(k, j) ? j : i));
+        if (sj < 0)
+          acc.noalias() += Aij * y;
+        else
+          acc.noalias() += Aij * (F.filter(sj) * y);
+      }
+      if (si >= 0) {
+        const Vec<3> wi = In(w + 3 * i);
+        acc = (F.filter(si) * acc + F.sigma[si] * (wi - F.filter(si) * wi)).eval();
+      }
+      return acc + lumped_t;
+    }
+  }
+  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+    const int j = A.col[k];
+    if (kept(k, j))
+      acc.noalias() += A.block(i, k) * In(w + B * j);
+    else if (transpose)
+      acc.noalias() += A.block(i, k).transpose() * In(w + B * i);
+    else
+      acc.noalias() += A.block(i, k) * In(w + B * i);
+  }
+  return acc;
+}
+
+/// fc = P^T r. Implicit P: P^T = Phat^T (I - omega A_f^T D^-1) Z, with L.d as work vector.
+template <int B>
+void restrict_to(const Level<B>& L, const double* r, double* fc) {
+  if (!L.implicit) {
+    with_prolongator_values(L, [&](const auto* p) { spmv_transpose(L.P.view(), L.PT, p, r, fc); });
+    return;
+  }
+  const auto A = L.A();
+  const int n = A.rows, nc = static_cast<int>(L.agg_ptr.size()) - 1;
+  const int* agg = L.aggs.node_agg.data();
+  double* w = L.d.data();
+  with_inverses(L, [&](const auto* Dinv) {
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+    for (int i = 0; i < n; ++i)
+      Eigen::Map<Vec<B>>(w + B * i) =
+          agg[i] >= 0 ? Vec<B>(value_block<B, B>(Dinv, i) * Eigen::Map<const Vec<B>>(r + B * i)) : Vec<B>::Zero();
+  });
+#pragma omp parallel for schedule(static) if (nc > parallel_rows / 8)
+  for (int J = 0; J < nc; ++J) {
+    Vec<6> acc = Vec<6>::Zero();
+    for (int t = L.agg_ptr[J]; t < L.agg_ptr[J + 1]; ++t) {
+      const int i = L.agg_nodes[t];
+      const Vec<B> v = Eigen::Map<const Vec<B>>(r + B * i) - L.omega * smoothing_row(L, A, i, w, /*transpose=*/true);
+      acc.noalias() += value_block<B, 6>(L.Qf.data(), i).transpose() * v;
+    }
+    Eigen::Map<Vec<6>>(fc + 6 * J) = acc;
+  }
+}
+
+/// x += P xc. Implicit P: P = Z (I - omega D^-1 A_f) Phat, with L.d as work vector.
+template <int B>
+void prolong_add(const Level<B>& L, const double* xc, double* x) {
+  if (!L.implicit) {
+    with_prolongator_values(L, [&](const auto* p) { multiply_add(L.P.view(), p, xc, x); });
+    return;
+  }
+  const auto A = L.A();
+  const int n = A.rows;
+  const int* agg = L.aggs.node_agg.data();
+  double* t = L.d.data();
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i)
+    Eigen::Map<Vec<B>>(t + B * i) =
+        agg[i] >= 0 ? Vec<B>(value_block<B, 6>(L.Qf.data(), i) * Eigen::Map<const Vec<6>>(xc + 6 * agg[i])) : Vec<B>::Zero();
+  with_inverses(L, [&](const auto* Dinv) {
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+    for (int i = 0; i < n; ++i) {
+      if (agg[i] < 0) continue;
+      Eigen::Map<Vec<B>>(x + B * i) +=
+          Eigen::Map<const Vec<B>>(t + B * i) - L.omega * (value_block<B, B>(Dinv, i) * smoothing_row(L, A, i, t, false));
+    }
+  });
+}
+
 template <int B>
 void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, const SaAmg::Params& prm,
            const double* f, double* x) {
@@ -936,7 +1109,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   const auto A = L.A();
   chebyshev(L, prm, f, x, /*zero_guess=*/true);  // pre-smoothing (G*)
   residual(A, f, x, L.res.data());
-  with_prolongator_values(L, [&](const auto* p) { spmv_transpose(L.P.view(), L.PT, p, L.res.data(), C.f.data()); });
+  restrict_to(L, L.res.data(), C.f.data());
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
   // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
@@ -946,7 +1119,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
       cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data());
       C.x += C.wx;
     }
-  with_prolongator_values(L, [&](const auto* p) { multiply_add(L.P.view(), p, C.x.data(), x); });
+  prolong_add(L, C.x.data(), x);
   chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
 }
 
@@ -990,6 +1163,20 @@ Eigen::MatrixXd SaAmg::level_matrix(int l) const {
 Eigen::MatrixXd SaAmg::prolongator(int l) const {
   WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
   auto dense = [](const auto& L) {
+    if (L.implicit) {  // column by column, through the cycle's own application of P
+      const int n = L.n(), nc = static_cast<int>(L.agg_ptr.size()) - 1;
+      constexpr int B = std::remove_cvref_t<decltype(L)>::block;
+      Eigen::MatrixXd D = Eigen::MatrixXd::Zero(B * n, 6 * nc);
+      Eigen::VectorXd ec = Eigen::VectorXd::Zero(6 * nc), x(B * n);
+      for (int c = 0; c < 6 * nc; ++c) {
+        ec[c] = 1;
+        x.setZero();
+        prolong_add(L, ec.data(), x.data());
+        D.col(c) = x;
+        ec[c] = 0;
+      }
+      return D;
+    }
     if (L.Pf.empty()) return L.P.to_dense();
     auto P = L.P;  // the pattern, with the float values in double (a diagnostic: a copy is fine)
     P.values().assign(L.Pf.begin(), L.Pf.end());

@@ -206,6 +206,19 @@ class SaAmg {
     /// accumulate in double. At 10k-160k vertices the rounding left SA+PPCG's iterations
     /// unchanged (bench/results/table-11-1/M-memory.md); it halves P's value bytes.
     bool single_prolongator = true;
+    /// Store the coarse operators A_l (l >= 1) in single precision: each block is formed in
+    /// double by the Galerkin product and rounded once; smoothing, the next level's Galerkin
+    /// product and the coarsest factorisation read the rounded, still exactly symmetric A_l.
+    /// A_1 is SA's largest array (bench/results/table-11-1/M-memory.md).
+    bool single_coarse_operators = true;
+    /// Keep the smoother's block inverses D_l^-1 in single precision once the level is built
+    /// (the Lanczos bound and the prolongator smoothing use them in double first).
+    bool single_block_inverses = true;
+    /// Apply the fine level's prolongator P = Z (I - omega D^-1 A_f) Phat from A instead of
+    /// storing it (Z: zero rows on special nodes). P is still formed for the Galerkin product,
+    /// then freed; the cycle keeps Phat (single precision), the aggregates and the strong
+    /// flags. Saves most of P's memory at two extra products with A per cycle.
+    bool implicit_prolongator = false;
 
     template <class V>
     void visit(V& v) {
@@ -232,6 +245,12 @@ class SaAmg {
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
       v.field("single_prolongator", single_prolongator,
               {Unit::none, Range::any(), "store the prolongators in single precision (rounded before the Galerkin product; products in double)"});
+      v.field("single_coarse_operators", single_coarse_operators,
+              {Unit::none, Range::any(), "store the coarse operators in single precision (formed in double, rounded once; products in double)"});
+      v.field("single_block_inverses", single_block_inverses,
+              {Unit::none, Range::any(), "keep the smoother's block inverses in single precision after the setup (products in double)"});
+      v.field("implicit_prolongator", implicit_prolongator,
+              {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
     }
   };
   static Checker validate(const Params& p);

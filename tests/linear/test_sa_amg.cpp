@@ -368,33 +368,44 @@ TEST_CASE("sa: the smoothed prolongator maps Kc to the smoothed near null space"
 
 TEST_CASE("sa: coarse operators are symmetric and positive definite with block size 6") {
   Prefiltered p = prefiltered_cloth(25, Tessellation::irregular, Pins::two_sides);
-  SaAmg sa(small_coarse(10));
-  SolveContext ctx{&p.sys.pins, &p.sys.x};
-  REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
-  REQUIRE(sa.levels() >= 3);
-  CHECK(sa.stats().coarse_direct);
-  for (int l = 1; l < sa.levels(); ++l) {
-    CAPTURE(l);
-    const auto& st = sa.stats().levels[l];
-    CHECK(st.block_size == 6);
-    const Eigen::MatrixXd Ac = sa.level_matrix(l);
-    CHECK((Ac - Ac.transpose()).norm() <= 1e-14 * Ac.norm());
-    Eigen::LLT<Eigen::MatrixXd> llt(Ac);
-    CHECK(llt.info() == Eigen::Success);
-    // Galerkin: A_c = P^T A P (up to the dummy-dof diagonal).
-    const Eigen::MatrixXd P = sa.prolongator(l - 1), Af = sa.level_matrix(l - 1);
-    Eigen::MatrixXd G = P.transpose() * Af * P;
-    for (int c = 0; c < G.rows(); ++c)
-      if (P.col(c).norm() == 0) G(c, c) = Ac(c, c);
-    CHECK((G - Ac).norm() <= 1e-12 * Ac.norm());
+  // Both storages of A_c: double, and the default single precision (formed in double, rounded once).
+  for (const bool single : {false, true}) {
+    CAPTURE(single);
+    SaAmg::Params prm = small_coarse(10);
+    prm.single_coarse_operators = single;
+    SaAmg sa(prm);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(sa.levels() >= 3);
+    CHECK(sa.stats().coarse_direct);
+    for (int l = 1; l < sa.levels(); ++l) {
+      CAPTURE(l);
+      const auto& st = sa.stats().levels[l];
+      CHECK(st.block_size == 6);
+      const Eigen::MatrixXd Ac = sa.level_matrix(l);
+      CHECK((Ac - Ac.transpose()).norm() == 0.0);  // one triangle stored, the diagonal blocks symmetrised
+      Eigen::LLT<Eigen::MatrixXd> llt(Ac);
+      CHECK(llt.info() == Eigen::Success);
+      // Galerkin: A_c = P^T A P (up to the dummy-dof diagonal), to round-off or to float rounding.
+      const Eigen::MatrixXd P = sa.prolongator(l - 1), Af = sa.level_matrix(l - 1);
+      Eigen::MatrixXd G = P.transpose() * Af * P;
+      for (int c = 0; c < G.rows(); ++c)
+        if (P.col(c).norm() == 0) G(c, c) = Ac(c, c);
+      CHECK((G - Ac).norm() <= (single ? 1e-7 : 1e-12) * Ac.norm());
+      if (single) {
+        CHECK(Ac == Ac.cast<float>().cast<double>());
+        CHECK((G - Ac).norm() > 1e-12 * Ac.norm());  // the rounding did happen
+      }
+    }
+    if (!single) continue;
+    const PreconditionerInfo info = sa.info();
+    MESSAGE("levels " << info.levels << " operator complexity " << info.operator_complexity << " grid complexity "
+                      << info.grid_complexity << " memory " << info.memory_bytes);
+    CHECK(info.levels == sa.levels());
+    CHECK(info.operator_complexity > 1.0);
+    CHECK(info.operator_complexity < 3.0);
+    CHECK(info.memory_bytes > 0);
   }
-  const PreconditionerInfo info = sa.info();
-  MESSAGE("levels " << info.levels << " operator complexity " << info.operator_complexity << " grid complexity "
-                    << info.grid_complexity << " memory " << info.memory_bytes);
-  CHECK(info.levels == sa.levels());
-  CHECK(info.operator_complexity > 1.0);
-  CHECK(info.operator_complexity < 3.0);
-  CHECK(info.memory_bytes > 0);
 }
 
 TEST_CASE("sa: Lanczos underestimates lambda_max and the inflated bound covers it") {
@@ -532,16 +543,19 @@ TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle 
   }
 }
 
-TEST_CASE("sa: single-precision prolongators keep the PCG iterations and take less memory") {
-  // The default stores P in float, rounded before the Galerkin product; the double-precision
-  // hierarchy is the reference. Irregular cloth pinned at two sides and the re-entrant L.
+TEST_CASE("sa: single-precision prolongators and coarse operators and block inverses keep the PCG iterations and take less memory") {
+  // The default stores P, the coarse operators and the smoother's block inverses in float (P
+  // rounded before the Galerkin product); the all-double hierarchy is the reference.
+  // Irregular cloth pinned at two sides and the re-entrant L.
   for (Pins pins : {Pins::two_sides, Pins::reentrant}) {
     CAPTURE(static_cast<int>(pins));
     Prefiltered p = prefiltered_cloth(61, Tessellation::irregular, pins);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
     SaAmg::Params dp = small_coarse(50), sp = small_coarse(50);
-    dp.single_prolongator = false;
-    REQUIRE(sp.single_prolongator);  // the default
+    dp.single_prolongator = dp.single_coarse_operators = dp.single_block_inverses = false;
+    REQUIRE(sp.single_prolongator);  // the defaults
+    REQUIRE(sp.single_coarse_operators);
+    REQUIRE(sp.single_block_inverses);
     SaAmg d(dp), f(sp);
     REQUIRE(d.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(f.setup(p.Ahat, ctx) == Status::success);
@@ -553,13 +567,83 @@ TEST_CASE("sa: single-precision prolongators keep the PCG iterations and take le
     CHECK((Pf - Pd).norm() <= 1e-7 * Pd.norm());
     CHECK((Pf - Pd).norm() > 0);  // the rounding did happen
     const PcgResult rd = pcg(p.Ahat, p.chat, d), rf = pcg(p.Ahat, p.chat, f);
-    MESSAGE("double P: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; float P: " << rf.iterations
-                         << " iterations, " << f.info().memory_bytes << " bytes");
+    MESSAGE("double: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; float: " << rf.iterations
+                       << " iterations, " << f.info().memory_bytes << " bytes");
     CHECK(rd.converged);
     CHECK(rf.converged);
     CHECK(std::abs(rf.iterations - rd.iterations) <= 1);
-    CHECK(f.info().memory_bytes < 0.9 * d.info().memory_bytes);
+    CHECK(f.info().memory_bytes < 0.75 * d.info().memory_bytes);
+    // Each of the three storages saves memory on its own.
+    for (int which = 0; which < 3; ++which) {
+      CAPTURE(which);
+      SaAmg::Params q = small_coarse(50);
+      bool& flag = which == 0 ? q.single_prolongator : which == 1 ? q.single_coarse_operators : q.single_block_inverses;
+      flag = false;
+      SaAmg o(q);
+      REQUIRE(o.setup(p.Ahat, ctx) == Status::success);
+      const PcgResult ro = pcg(p.Ahat, p.chat, o);
+      CHECK(ro.converged);
+      CHECK(std::abs(ro.iterations - rf.iterations) <= 1);
+      CHECK(f.info().memory_bytes < o.info().memory_bytes);
+    }
   }
+}
+
+TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
+  // P = Z (I - omega D^-1 A_f) Phat applied from A (through the vertex filters, or from a
+  // stored Ahat), with and without filtered smoothing: the same P up to Phat's float rounding,
+  // a V-cycle as symmetric and positive definite as the stored one's, the same iterations,
+  // less memory.
+  for (const bool on_the_fly : {false, true})
+    for (const bool filtered : {true, false}) {
+      CAPTURE(on_the_fly);
+      CAPTURE(filtered);
+      for (const int m : {13, 61}) {
+        CAPTURE(m);
+        Prefiltered p = prefiltered_cloth(m, Tessellation::irregular, m == 13 ? Pins::reentrant : Pins::two_sides);
+        SolveContext ctx{&p.sys.pins, &p.sys.x};
+        OperatorFilter F;
+        F.build(p.sys.A, p.sys.pins);
+        const BlockCsr& A = on_the_fly ? p.sys.A : p.Ahat;
+        const VertexFilterView view = on_the_fly ? F.view() : VertexFilterView{};
+        SaAmg::Params ep = small_coarse(m == 13 ? 8 : 50);
+        ep.filtered_smoothing = filtered;
+        ep.single_prolongator = false;  // P in double: the reference for the implicit one
+        SaAmg::Params ip = ep;
+        ip.implicit_prolongator = true;
+        SaAmg e(ep), im(ip);
+        REQUIRE(e.setup(A, ctx, view) == Status::success);
+        REQUIRE(im.setup(A, ctx, view) == Status::success);
+        REQUIRE(im.levels() >= 3);
+        REQUIRE(im.levels() == e.levels());
+        if (m == 13) {
+          const Eigen::MatrixXd Pe = e.prolongator(0), Pi = im.prolongator(0);
+          CHECK((Pi - Pe).norm() <= 1e-6 * Pe.norm());
+          const int special_rows = static_cast<int>((Pe.rowwise().norm().array() == 0).count());
+          CHECK(static_cast<int>((Pi.rowwise().norm().array() == 0).count()) == special_rows);
+          const Eigen::MatrixXd Be = assemble_preconditioner(e, A.rows()), Bi = assemble_preconditioner(im, A.rows());
+          CHECK((Bi - Bi.transpose()).norm() <= 1e-12 * Bi.norm());
+          CHECK(min_symmetric_eigenvalue(Bi) > 0);
+          CHECK((Bi - Be).norm() <= 1e-5 * Be.norm());
+        } else {
+          const PcgResult re = pcg(p.Ahat, p.chat, e), ri = pcg(p.Ahat, p.chat, im);
+          MESSAGE("stored P: " << re.iterations << " iterations, " << e.info().memory_bytes << " bytes; implicit: "
+                               << ri.iterations << " iterations, " << im.info().memory_bytes << " bytes");
+          CHECK(re.converged);
+          CHECK(ri.converged);
+          CHECK(std::abs(ri.iterations - re.iterations) <= 1);
+          CHECK(im.info().memory_bytes < e.info().memory_bytes);
+          // Reused aggregates: the second setup forms P again for its Galerkin product.
+          SaAmg::Params rp = ip;
+          rp.reuse = SaReuse::aggregates;
+          SaAmg r(rp);
+          REQUIRE(r.setup(A, ctx, view) == Status::success);
+          REQUIRE(r.setup(A, ctx, view) == Status::success);
+          CHECK(r.stats().reused);
+          CHECK(pcg(p.Ahat, p.chat, r).iterations == ri.iterations);
+        }
+      }
+    }
 }
 
 TEST_CASE("sa: setup without positions is invalid input") {
