@@ -251,9 +251,10 @@ class SymBlockMatrix {
  public:
   using Block = BlockOf<B, B>;
   SymBlockMatrix() = default;
-  /// From a full, structurally symmetric pattern with sorted rows (values zero).
-  SymBlockMatrix(int rows, std::vector<int> row_ptr, std::vector<int> col)
-      : rows_(rows), row_ptr_(std::move(row_ptr)), col_(std::move(col)) {
+  /// From a full, structurally symmetric pattern with sorted rows (values zero, in single
+  /// precision when `single`).
+  SymBlockMatrix(int rows, std::vector<int> row_ptr, std::vector<int> col, bool single = false)
+      : rows_(rows), row_ptr_(std::move(row_ptr)), col_(std::move(col)), single_(single) {
     src_.assign(col_.size(), 0);
     int stored = 0;
     // Upper blocks numbered row by row (so a row's stored blocks are contiguous), then each
@@ -268,7 +269,10 @@ class SymBlockMatrix {
         const int kt = find(j, i);
         src_[k] = kt >= 0 ? ~src_[kt] : 0;  // kt < 0: the pattern is not symmetric (asserted by tests)
       }
-    val_.assign(static_cast<std::size_t>(B * B) * stored, 0.0);
+    if (single_)
+      valf_.assign(static_cast<std::size_t>(B * B) * stored, 0.0f);
+    else
+      val_.assign(static_cast<std::size_t>(B * B) * stored, 0.0);
   }
 
   int rows() const { return rows_; }
@@ -472,8 +476,9 @@ int invert_block_diagonal(const BsrView<B, B>& A, std::vector<double>& Dinv) {
 template <int B, int C>
 struct Galerkin {
   /// Pattern of Ac (sorted rows; every row holds its diagonal; structurally symmetric),
-  /// stored by its upper triangle.
-  static SymBlockMatrix<C> symbolic(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT) {
+  /// stored by its upper triangle, in single precision when `single`.
+  static SymBlockMatrix<C> symbolic(const BsrView<B, B>& A, const BsrView<B, C>& P, const TransposeIndex& PT,
+                                    bool single = false) {
     const int nc = P.cols;
     std::vector<std::vector<int>> rows(nc);
 #pragma omp parallel if (nc > parallel_rows / 8)
@@ -504,7 +509,7 @@ struct Galerkin {
       col.insert(col.end(), r.begin(), r.end());
       std::vector<int>().swap(r);
     }
-    return SymBlockMatrix<C>(nc, std::move(ptr), std::move(col));
+    return SymBlockMatrix<C>(nc, std::move(ptr), std::move(col), single);
   }
 
   /// Ac's values (Ac from `symbolic` for these patterns of A and P, in the precision Ac

@@ -766,8 +766,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   {
     ScopedTimer t(T.galerkin);
     if (!reuse) {
-      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT);
-      C.own.set_single(prm.single_coarse_operators);
+      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT, prm.single_coarse_operators);
     }
     Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);  // exactly symmetric
     // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
