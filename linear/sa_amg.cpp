@@ -543,8 +543,9 @@ struct Level {
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits) + vb(strong) + vb(special) + vb(aggs.node_agg) + P.memory_bytes() + vb(Pf) +
-                    PT.memory_bytes() + vb(dummy);
+    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(special) + vb(aggs.node_agg) +
+                    P.memory_bytes() + vb(Pf) + PT.memory_bytes() + vb(dummy);
+    m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
     if (direct == 2) m += sizeof(double) * (ldlt.matrixLDLT().size() + 2 * ldlt.rows());
