@@ -113,6 +113,13 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   using linear::SaPpcg;
   list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
                   maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
+  {
+    SaPpcg::Params implicit = sa_krylov<SaPpcg>(s);
+    implicit.preconditioner.implicit_prolongator = true;
+    list.push_back({"sa_ppcg_implicit", "SA+PPCG implicit P",
+                    "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)", false,
+                    maker<SaPpcg>(implicit)});
+  }
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

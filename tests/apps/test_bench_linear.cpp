@@ -70,6 +70,7 @@ TEST_SUITE("apps") {
     CHECK(lines.front().at("record") == "meta");
     CHECK(lines.front().at("stream_triad_gbs").get<double>() > 0);
     std::map<std::string, int> contacts, springs, pattern_changes;
+    std::map<std::string, double> sa_its, sa_mem, implicit_its, implicit_mem;  // per example/tessellation
     for (size_t i = 1; i < lines.size(); ++i) {
       const json& j = lines[i];
       CAPTURE(j.dump());
@@ -92,6 +93,10 @@ TEST_SUITE("apps") {
         CHECK(j.at("mean_iterations").get<double>() >= 1);
       }
       const std::string key = ex + "/" + c.at("tessellation").get<std::string>();
+      if (j.at("solver") == "sa_ppcg")
+        sa_its[key] = j.at("mean_iterations").get<double>(), sa_mem[key] = j.at("memory_bytes").get<double>();
+      if (j.at("solver") == "sa_ppcg_implicit")
+        implicit_its[key] = j.at("mean_iterations").get<double>(), implicit_mem[key] = j.at("memory_bytes").get<double>();
       contacts[key] = c.at("box_contacts_max").get<int>();
       springs[key] = c.at("springs_max").get<int>();
       pattern_changes[key] = c.at("pattern_changes").get<int>();
@@ -105,6 +110,14 @@ TEST_SUITE("apps") {
       CHECK(pattern_changes["dropVertical/" + std::string(t)] >= 1);
       CHECK(contacts["pinned/" + std::string(t)] == 0);
       CHECK(springs["dropHorizontal/" + std::string(t)] == 0);
+    }
+    // The memory option beside the default, on every example: the same iterations, less memory.
+    REQUIRE(sa_its.size() == 10);
+    REQUIRE(implicit_its.size() == 10);
+    for (const auto& [key, its] : sa_its) {
+      CAPTURE(key);
+      CHECK(std::abs(implicit_its[key] - its) <= 1.0);
+      CHECK(implicit_mem[key] < sa_mem[key]);
     }
     CHECK(slurp(dir / "bench_linear.md").find("Table 11.1") != std::string::npos);
     fs::remove_all(dir);
