@@ -54,6 +54,13 @@ struct VertexFilterView {
   }
 };
 
+/// Block k of R x C row-major blocks stored as T (double, or float for single-precision
+/// storage), read as double.
+template <int R, int C, class T>
+inline Eigen::Matrix<double, R, C> value_block(const T* val, std::ptrdiff_t k) {
+  return Eigen::Map<const Eigen::Matrix<T, R, C, Eigen::RowMajor>>(val + static_cast<std::ptrdiff_t>(R * C) * k).template cast<double>();
+}
+
 /// Non-owning view of a BSR matrix: #rows block rows, R*C doubles per block.
 ///
 /// A square view may be stored by one triangle (`src` non-null, see `SymBlockMatrix`): the
@@ -88,12 +95,7 @@ struct BsrView {
   /// ones (which may be stored by one triangle, in double or single precision).
   auto block(std::ptrdiff_t k) const {
     if constexpr (R == C) {
-      BlockOf<R, C> b;
-      if (valf)
-        b = Eigen::Map<const Eigen::Matrix<float, R, C, Eigen::RowMajor>>(valf + static_cast<std::ptrdiff_t>(R * C) * stored_index(k))
-                .template cast<double>();
-      else
-        b = stored(k);
+      BlockOf<R, C> b = valf ? value_block<R, C>(valf, stored_index(k)) : value_block<R, C>(val, stored_index(k));
       if (transposed(k)) b.transposeInPlace();
       return b;
     } else {
@@ -243,7 +245,7 @@ class BlockMatrix {
 /// Symmetric B x B block matrix stored by its upper triangle (diagonal included), with the
 /// full pattern kept for the algorithms that walk rows (strength, aggregation, P, Galerkin):
 /// per block of the pattern 8 bytes (column, `src`), per stored block B*B doubles, or floats
-/// after `set_single(true)` (every read converts to double). A full BlockMatrix of a coarse
+/// when constructed `single` (every read converts to double). A full BlockMatrix of a coarse
 /// SA operator (6x6 blocks) holds almost twice the values. The pattern must be structurally
 /// symmetric with every diagonal block present.
 template <int B>
@@ -279,27 +281,11 @@ class SymBlockMatrix {
   int cols() const { return rows_; }
   int nnz() const { return static_cast<int>(col_.size()); }  ///< blocks of the full pattern
   int stored_blocks() const { return static_cast<int>((single_ ? valf_.size() : val_.size()) / (B * B)); }
-  /// Store the values in single (true) or double precision, zeroed; the other storage is freed.
-  void set_single(bool single) {
-    const std::size_t n = static_cast<std::size_t>(stored_blocks()) * (B * B);
-    single_ = single;
-    if (single) {
-      std::vector<double>().swap(val_);
-      valf_.assign(n, 0.0f);
-    } else {
-      std::vector<float>().swap(valf_);
-      val_.assign(n, 0.0);
-    }
-  }
   bool single() const { return single_; }
   /// Index of the stored block of (i, i).
   int diagonal_index(int i) const { return src_[find(i, i)]; }
   /// Stored block s, in double, for either precision.
-  Block stored_value(std::ptrdiff_t s) const {
-    if (single_)
-      return Eigen::Map<const Eigen::Matrix<float, B, B, Eigen::RowMajor>>(valf_.data() + B * B * s).template cast<double>();
-    return Eigen::Map<const Block>(val_.data() + B * B * s);
-  }
+  Block stored_value(std::ptrdiff_t s) const { return single_ ? value_block<B, B>(valf_.data(), s) : value_block<B, B>(val_.data(), s); }
   /// Write stored block s (rounded to float in single precision).
   void store(std::ptrdiff_t s, const Block& b) {
     if (single_)
@@ -362,13 +348,6 @@ void residual(const BsrView<R, C>& A, const double* f, const double* x, double* 
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
   for (int i = 0; i < A.rows; ++i)
     Eigen::Map<Eigen::Matrix<double, R, 1>>(r + R * i) = Eigen::Map<const Eigen::Matrix<double, R, 1>>(f + R * i) - row_product(A, i, x);
-}
-
-/// Block k of R x C row-major blocks stored as T (double, or float for single-precision
-/// storage), read as double.
-template <int R, int C, class T>
-inline Eigen::Matrix<double, R, C> value_block(const T* val, std::ptrdiff_t k) {
-  return Eigen::Map<const Eigen::Matrix<T, R, C, Eigen::RowMajor>>(val + static_cast<std::ptrdiff_t>(R * C) * k).template cast<double>();
 }
 
 /// y += A x for a rectangular pattern (no one-triangle storage, no filter) whose values are

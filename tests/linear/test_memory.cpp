@@ -134,12 +134,10 @@ TEST_SUITE("linear") {
     CHECK((y - D * x).norm() <= 1e-14 * (D * x).norm());
     // The same blocks in single precision: stored rounded, read back as double by block(),
     // to_dense and the product; half the value bytes.
-    SymBlockMatrix<6> Sf(3, ptr, col);
-    const std::size_t double_bytes = Sf.memory_bytes();
-    Sf.set_single(true);
+    SymBlockMatrix<6> Sf(3, ptr, col, /*single=*/true);
     CHECK(Sf.single());
     CHECK(Sf.stored_blocks() == 5);
-    CHECK(Sf.memory_bytes() < double_bytes);
+    CHECK(Sf.memory_bytes() < S.memory_bytes());
     for (int s = 0; s < S.stored_blocks(); ++s) Sf.store(s, S.stored(s));
     const Eigen::MatrixXd Df = Sf.to_dense();
     CHECK(Df == D.cast<float>().cast<double>());
