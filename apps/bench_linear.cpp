@@ -138,6 +138,8 @@ struct SolverStats {
   std::size_t memory_max = 0;
   int levels = 0;
   double operator_complexity = 0;
+  std::vector<LevelRecord> hierarchy;  // of the first setup (multigrid only)
+  std::map<std::string, double> setup_split;  // summed over the setups (multigrid only)
   std::string message;  // first failure
   static double mean(const std::vector<double>& v) { return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / v.size(); }
   static double median(std::vector<double> v) {
@@ -263,6 +265,8 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
       st.memory_max = std::max(st.memory_max, rep.memory_bytes);
       st.levels = std::max(st.levels, rep.levels);
       st.operator_complexity = std::max(st.operator_complexity, rep.operator_complexity);
+      if (st.hierarchy.empty()) st.hierarchy = sol.hierarchy();
+      for (const auto& [phase, seconds] : sol.setup_split()) st.setup_split[phase] += seconds;
       st.relres_max = std::max(st.relres_max, rep.relative_residual);
       if (!ok) {
         if (st.failures++ == 0) st.message = fmt::format("step {}: {} ({})", step, msg.empty() ? "non-finite solution" : msg, to_string(status));
@@ -304,6 +308,22 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
   r.case_peak_mb = peak_reset ? proc_status_mb("VmHWM:") : -1;
   r.process_peak_mb = rusage_peak_mb();
   return r;
+}
+
+/// The hierarchy as the jsonl records it: one object per level, finest first.
+Json hierarchy_json(const std::vector<LevelRecord>& levels) {
+  Json out = Json::array();
+  for (const LevelRecord& l : levels)
+    out.push_back({{"nodes", l.rows}, {"block_size", l.block_size}, {"blocks", l.nnz_blocks}, {"special", l.special},
+                   {"aggregates", l.aggregates}, {"max_aggregate", l.max_aggregate}, {"p_blocks", l.nnz_p}, {"lambda", l.lambda}});
+  return out;
+}
+
+/// Mean seconds per setup by phase.
+Json split_json(const std::map<std::string, double>& split, int setups) {
+  Json out = Json::object();
+  for (const auto& [phase, seconds] : split) out[phase] = setups > 0 ? seconds / setups : 0.0;
+  return out;
 }
 
 std::string fmt_ms(double s) { return fmt::format("{:.3g}", 1e3 * s); }
@@ -486,6 +506,8 @@ int bench_linear(const BenchLinearOptions& opt) {
                {"memory_with_matrix_bytes", s.memory_max + r.matrix_bytes},
                {"levels", s.levels},
                {"operator_complexity", s.operator_complexity},
+               {"hierarchy", hierarchy_json(s.hierarchy)},
+               {"mean_setup_split_s", split_json(s.setup_split, s.solves)},
                {"message", s.message}};
         jl << j.dump() << "\n";
         csv << fmt::format("{},{},{},{},{},{},{},{},{:.3f},{:.5f},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3e},{:.3e},{:.3e},{:.3e},{},{},{},"

@@ -17,6 +17,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "framework/block_csr.hpp"
@@ -49,6 +50,13 @@ int bench_linear(const BenchLinearOptions& options);
 
 namespace benchlin {
 
+/// One level of a multigrid hierarchy as the bench records it (from `linear::SaLevelStats`).
+struct LevelRecord {
+  int rows = 0, block_size = 0, aggregates = 0, max_aggregate = 0, special = 0;
+  long long nnz_blocks = 0, nnz_p = 0;
+  double lambda = 0;
+};
+
 /// A linear solver behind a virtual interface (the LinearSolver life cycle plus the context).
 class AnySolver {
  public:
@@ -61,6 +69,10 @@ class AnySolver {
   virtual LinearReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
   /// A known solution for the solver's own energy-error report; false if it has none.
   virtual bool set_reference(const Eigen::VectorXd* x_star) = 0;
+  /// The multigrid hierarchy of the last setup, finest level first (empty: no multigrid).
+  virtual std::vector<LevelRecord> hierarchy() const { return {}; }
+  /// The last setup's time split [s] by phase (empty: no multigrid).
+  virtual std::vector<std::pair<std::string, double>> setup_split() const { return {}; }
 };
 
 /// One solver this build provides.

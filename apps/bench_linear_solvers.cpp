@@ -55,6 +55,23 @@ class Adapter final : public AnySolver {
       return false;
     }
   }
+  std::vector<LevelRecord> hierarchy() const override {
+    std::vector<LevelRecord> out;
+    if constexpr (requires(const L& l) { l.preconditioner().stats().levels; }) {
+      for (const auto& s : solver_.preconditioner().stats().levels)
+        out.push_back({s.rows, s.block_size, s.aggregates, s.max_aggregate, s.special, s.nnz_blocks, s.nnz_p, s.lambda});
+    }
+    return out;
+  }
+  std::vector<std::pair<std::string, double>> setup_split() const override {
+    if constexpr (requires(const L& l) { l.preconditioner().stats().times; }) {
+      const auto& t = solver_.preconditioner().stats().times;
+      return {{"strength", t.strength}, {"aggregation", t.aggregation}, {"qr", t.qr},       {"smoothing", t.smoothing},
+              {"galerkin", t.galerkin}, {"lanczos", t.lanczos},         {"other", t.other}, {"total", t.total}};
+    } else {
+      return {};
+    }
+  }
 
  private:
   L solver_;
@@ -119,6 +136,13 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
     list.push_back({"sa_ppcg_implicit", "SA+PPCG implicit P",
                     "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)", false,
                     maker<SaPpcg>(implicit)});
+  }
+  {
+    SaPpcg::Params p2 = sa_krylov<SaPpcg>(s);
+    p2.preconditioner.prolongator_degree = 2;
+    list.push_back({"sa_ppcg_p2", "SA+PPCG P degree 2",
+                    "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)", false,
+                    maker<SaPpcg>(p2)});
   }
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});

@@ -473,6 +473,76 @@ void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv,
   }
 }
 
+
+
+template <int B>
+BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<double>& Dinv,
+                                     const std::vector<std::uint8_t>* strong, const Aggregates& aggs, double omega,
+                                     const BlockMatrix<B, 6>& P) {
+  const int n = A.rows, nc = P.cols();
+  const std::vector<int>& agg = aggs.node_agg;
+  const int* pr = P.row_ptr().data();
+  const int* pc = P.col().data();
+  auto used = [&](int i, int k) { return A.col[k] == i || !strong || (*strong)[k]; };
+  // Row i of the result has the columns of P's rows i and j over A_f's off-diagonal blocks
+  // (i, j); zero rows stay zero (Z).
+  auto row_columns = [&](int i, std::vector<int>& mark, std::vector<int>& cols) {
+    cols.clear();
+    if (agg[i] < 0) return;
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      if (!used(i, k)) continue;
+      const int j = A.col[k];
+      for (int q = pr[j]; q < pr[j + 1]; ++q)
+        if (mark[pc[q]] != i) mark[pc[q]] = i, cols.push_back(pc[q]);
+    }
+    std::sort(cols.begin(), cols.end());
+  };
+  std::vector<int> ptr(n + 1, 0);
+#pragma omp parallel if (n > parallel_rows)
+  {
+    std::vector<int> mark(nc, -1), cols;
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      row_columns(i, mark, cols);
+      ptr[i + 1] = static_cast<int>(cols.size());
+    }
+  }
+  for (int i = 0; i < n; ++i) ptr[i + 1] += ptr[i];
+  std::vector<int> col(ptr[n]);
+#pragma omp parallel if (n > parallel_rows)
+  {
+    std::vector<int> mark(nc, -1), cols;
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      row_columns(i, mark, cols);
+      std::copy(cols.begin(), cols.end(), col.begin() + ptr[i]);
+    }
+  }
+  BlockMatrix<B, 6> out(n, nc, std::move(ptr), std::move(col));
+  out.values().assign(static_cast<std::size_t>(B * 6) * out.nnz(), 0.0);
+  const int* orp = out.row_ptr().data();
+  const int* oc = out.col().data();
+  auto slot = [&](int i, int c) { return static_cast<int>(std::lower_bound(oc + orp[i], oc + orp[i + 1], c) - oc); };
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    if (agg[i] < 0) continue;
+    const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+    Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j == i || !used(i, k)) {
+        Aii += A.block(i, k);  // the diagonal, and weak blocks lumped into it
+        continue;
+      }
+      const Mat<B> W = omega * Di * A.block(i, k);
+      for (int q = pr[j]; q < pr[j + 1]; ++q) out.block(slot(i, pc[q])).noalias() -= W * P.block(q);
+    }
+    const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
+    for (int q = pr[i]; q < pr[i + 1]; ++q) out.block(slot(i, pc[q])).noalias() += G * P.block(q);
+  }
+  return out;
+}
+
 #define WEFT_SA_INSTANTIATE(B)                                                                                        \
   template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
   template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
@@ -485,7 +555,10 @@ void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv,
                                                     const Aggregates&);                                               \
   template void prolongator_values<B>(const BsrView<B, B>&, const std::vector<double>&,                               \
                                       const std::vector<std::uint8_t>*, const Aggregates&, const Tentative&, double,  \
-                                      BlockMatrix<B, 6>&);
+                                      BlockMatrix<B, 6>&);                                                           \
+  template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&,                  \
+                                                   const std::vector<std::uint8_t>*, const Aggregates&, double,       \
+                                                   const BlockMatrix<B, 6>&);
 WEFT_SA_INSTANTIATE(3)
 WEFT_SA_INSTANTIATE(6)
 #undef WEFT_SA_INSTANTIATE
@@ -583,7 +656,13 @@ Checker SaAmg::validate(const Params& p) {
                "in (0, chebyshev_upper)")
       .require(p.cycle_gamma >= 1 && p.cycle_gamma <= 4, "cycle_gamma", p.cycle_gamma, "in [1, 4]")
       .require(p.cycle_gamma_levels >= 1 && p.cycle_gamma_levels <= 30, "cycle_gamma_levels", p.cycle_gamma_levels,
-               "in [1, 30]");
+               "in [1, 30]")
+      .require(p.prolongator_degree >= 1 && p.prolongator_degree <= 3, "prolongator_degree", p.prolongator_degree,
+               "in [1, 3]")
+      .require(p.prolongator_degree_levels >= 1 && p.prolongator_degree_levels <= 30, "prolongator_degree_levels",
+               p.prolongator_degree_levels, "in [1, 30]")
+      .require(!p.implicit_prolongator || p.prolongator_degree == 1, "prolongator_degree", p.prolongator_degree,
+               "1 when implicit_prolongator is true (the implicit P is one smoothing step)");
   return c;
 }
 
@@ -721,14 +800,17 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   const std::vector<std::uint8_t>* strong = prm.filtered_smoothing ? &L.strong : nullptr;
   const double omega = 4.0 / (3.0 * L.lambda);
   L.implicit = prm.implicit_prolongator && index == 0;
+  const int degree = index < prm.prolongator_degree_levels ? prm.prolongator_degree : 1;
   {
     ScopedTimer t(T.smoothing);
     // An implicit P is formed here for the Galerkin product and freed after it.
-    if (!reuse || L.P.rows() == 0) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
+    // A wider P (degree > 1) is formed from the one-step pattern each time.
+    if (!reuse || L.P.rows() == 0 || degree > 1) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if single_prolongator freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
+    for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
-    if (!reuse || L.PT.ptr.size() <= 1) L.PT.build(L.P.view());
+    if (!reuse || L.PT.ptr.size() <= 1 || degree > 1) L.PT.build(L.P.view());
     if (prm.single_prolongator && !L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
       for (double& v : L.P.values()) v = static_cast<double>(static_cast<float>(v));
   }

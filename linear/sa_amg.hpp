@@ -171,6 +171,15 @@ template <int B>
 void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv, const std::vector<std::uint8_t>* strong,
                         const Aggregates& aggs, const Tentative& t, double omega, BlockMatrix<B, 6>& P);
 
+/// One more damped Jacobi step of a prolongator: Z (I - omega D^-1 A_f) P, with A_f = A whose
+/// weak blocks (strong[k] == 0) are lumped into the diagonal (strong == nullptr: A_f = A) and
+/// Z zeroing the rows of nodes outside every aggregate. Its pattern is the union of P's rows
+/// over A_f's graph.
+template <int B>
+BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<double>& Dinv,
+                                     const std::vector<std::uint8_t>* strong, const Aggregates& aggs, double omega,
+                                     const BlockMatrix<B, 6>& P);
+
 }  // namespace sa
 
 /// Smoothed aggregation multigrid V(1,1) preconditioner (spec 04 §4-6). `apply` is const
@@ -200,6 +209,14 @@ class SaAmg {
     /// bending-dominated sheet keep while the V-cycle degrades with depth.
     int cycle_gamma = 1;
     int cycle_gamma_levels = 1;        ///< how many coarse levels (from level 1) get cycle_gamma
+    /// Damped Jacobi steps of the prolongator smoother, P = (Z (I - omega D^-1 A_f))^degree Phat,
+    /// on the first prolongator_degree_levels levels (from the fine one). The sheets' bending
+    /// makes the operator biharmonic-like, and one step leaves coarse basis functions whose
+    /// energy grows with the resolution: the iterations grow with the size
+    /// (bench/results/table-11-1/I2-prolongator-degree.md). Two steps on levels 0 and 1 keep
+    /// them flat, at a wider P and denser coarse operators (more memory and setup).
+    int prolongator_degree = 1;
+    int prolongator_degree_levels = 2;
     SaReuse reuse = SaReuse::none;
     /// Store the prolongators in single precision. P is rounded before the Galerkin product,
     /// so A_c = P^T A P holds exactly for the stored P and the cycle stays SPD; the products
@@ -242,6 +259,10 @@ class SaAmg {
               {Unit::none, Range::closed(1, 4), "coarse cycles per visit of the first cycle_gamma_levels coarse levels (1: V-cycle, 2: W there)"});
       v.field("cycle_gamma_levels", cycle_gamma_levels,
               {Unit::none, Range::closed(1, 30), "coarse levels, counted from level 1, that get cycle_gamma cycles"});
+      v.field("prolongator_degree", prolongator_degree,
+              {Unit::none, Range::closed(1, 3), "damped Jacobi steps of the prolongator smoother on the first prolongator_degree_levels levels"});
+      v.field("prolongator_degree_levels", prolongator_degree_levels,
+              {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
       v.field("single_prolongator", single_prolongator,
               {Unit::none, Range::any(), "store the prolongators in single precision (rounded before the Galerkin product; products in double)"});

@@ -95,6 +95,21 @@ TEST_SUITE("apps") {
       const std::string key = ex + "/" + c.at("tessellation").get<std::string>();
       if (j.at("solver") == "sa_ppcg")
         sa_its[key] = j.at("mean_iterations").get<double>(), sa_mem[key] = j.at("memory_bytes").get<double>();
+      // The multigrid hierarchy of the first setup: the fine level is the sheet, each level
+      // has the nodes the previous one aggregated into; one-level solvers record none.
+      const json& h = j.at("hierarchy");
+      if (j.at("solver") == "sa_ppcg" || j.at("solver") == "sa_ppcg_implicit") {
+        REQUIRE(h.size() == j.at("levels").get<size_t>());
+        REQUIRE(h.size() >= 2);
+        CHECK(h[0].at("nodes").get<int>() == c.at("vertices").get<int>());
+        CHECK(h[0].at("block_size").get<int>() == 3);
+        for (size_t l = 1; l < h.size(); ++l) {
+          CHECK(h[l].at("nodes") == h[l - 1].at("aggregates"));
+          CHECK(h[l].at("block_size").get<int>() == 6);
+        }
+      } else if (j.at("solver") == "diag_pcg") {
+        CHECK(h.empty());
+      }
       if (j.at("solver") == "sa_ppcg_implicit")
         implicit_its[key] = j.at("mean_iterations").get<double>(), implicit_mem[key] = j.at("memory_bytes").get<double>();
       contacts[key] = c.at("box_contacts_max").get<int>();
@@ -160,5 +175,38 @@ TEST_SUITE("apps") {
     }
     MESSAGE("mean SA+PPCG iterations at 1681 vertices: V-cycle " << its[1] << ", W-cycle " << its[2]);
     CHECK(its[2] < its[1]);
+  }
+}
+
+TEST_SUITE("slow") {
+  // The sheets' bending makes SA+PPCG's iterations grow with the resolution; two smoothing
+  // steps of the first two prolongators keep them flat (I2-prolongator-degree.md).
+  TEST_CASE("bench: with prolongator_degree 2 the SA+PPCG iterations stay flat from 10k to 160k vertices on pinned") {
+    const fs::path out = temp_dir("bench_linear_degree");
+    std::map<int, std::map<int, double>> its;  // degree -> m -> mean iterations
+    for (const int degree : {1, 2}) {
+      const fs::path dir = out / fmt::format("d{}", degree);
+      const Result r = run_weft(fmt::format("bench linear --examples pinned --tessellations regular --sizes 100 400 --steps 1 "
+                                            "--solvers sa_ppcg --sa prolongator_degree={} --out {}", degree, dir.string()));
+      CAPTURE(r.output);
+      REQUIRE(r.code == 0);
+      const auto lines = read_jsonl(dir / "bench_linear.jsonl");
+      REQUIRE(lines.size() == 3);
+      for (size_t i = 1; i < lines.size(); ++i) {
+        const json& j = lines[i];
+        REQUIRE(j.at("failures").get<int>() == 0);
+        its[degree][j.at("case").at("m").get<int>()] = j.at("mean_iterations").get<double>();
+        // The wider prolongator of the fine level.
+        const double p_per_row = j.at("hierarchy")[0].at("p_blocks").get<double>() / j.at("hierarchy")[0].at("nodes").get<double>();
+        CHECK(p_per_row > (degree == 2 ? 3.5 : 2.0));
+        CHECK(p_per_row < (degree == 2 ? 6.0 : 3.0));
+      }
+    }
+    MESSAGE("SA+PPCG iterations at 10,201 / 160,801 vertices: degree 1 " << its[1][100] << " / " << its[1][400] << ", degree 2 "
+                                                                        << its[2][100] << " / " << its[2][400]);
+    CHECK(its[1][400] >= 1.8 * its[1][100]);   // the growth the option removes
+    CHECK(its[2][400] <= 1.25 * its[2][100]);  // flat
+    CHECK(its[2][400] < its[1][400]);
+    fs::remove_all(out);
   }
 }

@@ -366,6 +366,89 @@ TEST_CASE("sa: the smoothed prolongator maps Kc to the smoothed near null space"
   }
 }
 
+TEST_CASE("sa: a second prolongator smoothing step is the one-step prolongator smoothed again") {
+  Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
+  const auto A = bsr_view(p.Ahat);
+  const int n = A.rows;
+  std::vector<double> mu, Dinv;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+  const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
+  const NullSpace K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
+  const sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
+  invert_block_diagonal<3>(A, Dinv);
+  REQUIRE(std::count(special.begin(), special.end(), 1) > 0);  // the Z rows are exercised
+  const double omega = 0.7;
+  const Eigen::MatrixXd Ad = p.Ahat.to_dense();
+  Eigen::MatrixXd Dinvd = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int i = 0; i < n; ++i) Dinvd.block<3, 3>(3 * i, 3 * i) = Eigen::Map<const BlockOf<3, 3>>(Dinv.data() + 9 * i);
+  for (bool filtered : {false, true}) {
+    CAPTURE(filtered);
+    const std::vector<std::uint8_t>* s = filtered ? &strong : nullptr;
+    BlockMatrix<3, 6> P1 = sa::prolongator_pattern<3>(A, s, ag);
+    sa::prolongator_values<3>(A, Dinv, s, ag, t, omega, P1);
+    const BlockMatrix<3, 6> P2 = sa::smooth_prolongator<3>(A, Dinv, s, ag, omega, P1);
+    Eigen::MatrixXd Af = Ad;
+    if (filtered)
+      for (int i = 0; i < n; ++i)
+        for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+          const int j = A.col[k];
+          if (j == i || strong[k]) continue;
+          Af.block<3, 3>(3 * i, 3 * i) += Ad.block<3, 3>(3 * i, 3 * j);
+          Af.block<3, 3>(3 * i, 3 * j).setZero();
+        }
+    const Eigen::MatrixXd P1d = P1.to_dense();
+    Eigen::MatrixXd expected = P1d - omega * Dinvd * Af * P1d;
+    for (int i = 0; i < n; ++i)
+      if (special[i]) expected.middleRows<3>(3 * i).setZero();
+    CHECK((P2.to_dense() - expected).norm() <= 1e-12 * expected.norm());
+    CHECK((expected - P1d).norm() > 1e-3 * P1d.norm());  // the step acts
+    CHECK(P2.nnz() > P1.nnz());                          // on a wider pattern
+    for (int i = 0; i < n; ++i)
+      if (special[i]) CHECK(P2.row_ptr()[i + 1] == P2.row_ptr()[i]);
+  }
+}
+
+TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive definite and reuse exact") {
+  Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  const int N = p.Ahat.rows();
+  SaAmg one(small_coarse(8));
+  REQUIRE(one.setup(p.Ahat, ctx) == Status::success);
+  for (int levels : {1, 2}) {
+    CAPTURE(levels);
+    SaAmg::Params prm = small_coarse(8);
+    prm.prolongator_degree = 2;
+    prm.prolongator_degree_levels = levels;
+    SaAmg two(prm);
+    REQUIRE(two.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(two.levels() >= 3);
+    for (int l = 0; l + 1 < two.levels(); ++l) {
+      CAPTURE(l);
+      const long long wider = two.stats().levels[l].nnz_p, narrow = one.stats().levels[l].nnz_p;
+      if (l < levels) CHECK(wider > narrow);
+    }
+    const Eigen::MatrixXd B = assemble_preconditioner(two, N);
+    CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
+    CHECK(min_symmetric_eigenvalue(B) > 0);
+    // Reuse of the aggregates rebuilds the wider P on the kept structure: the same map.
+    prm.reuse = SaReuse::aggregates;
+    SaAmg re(prm);
+    REQUIRE(re.setup(p.Ahat, ctx) == Status::success);
+    const long long first_nnz_p = re.stats().levels[0].nnz_p;
+    BlockCsr A2 = p.Ahat;
+    A2.scale(2.0);
+    REQUIRE(re.setup(A2, ctx) == Status::success);
+    REQUIRE(re.stats().reused);
+    CHECK(re.stats().levels[0].nnz_p == first_nnz_p);  // formed from the one-step pattern, not from the last P
+    const Eigen::MatrixXd B2 = assemble_preconditioner(re, N);
+    CHECK((2 * B2 - B).norm() <= 1e-10 * B.norm());  // B(2A) = B(A) / 2
+  }
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 4}), ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 2, .implicit_prolongator = true}), ConfigError);
+}
+
 TEST_CASE("sa: coarse operators are symmetric and positive definite with block size 6") {
   Prefiltered p = prefiltered_cloth(25, Tessellation::irregular, Pins::two_sides);
   // Both storages of A_c: double, and the default single precision (formed in double, rounded once).
