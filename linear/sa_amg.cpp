@@ -522,23 +522,27 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
   out.values().assign(static_cast<std::size_t>(B * 6) * out.nnz(), 0.0);
   const int* orp = out.row_ptr().data();
   const int* oc = out.col().data();
-  auto slot = [&](int i, int c) { return static_cast<int>(std::lower_bound(oc + orp[i], oc + orp[i + 1], c) - oc); };
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-  for (int i = 0; i < n; ++i) {
-    if (agg[i] < 0) continue;
-    const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
-    Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-      const int j = A.col[k];
-      if (j == i || !used(i, k)) {
-        Aii += A.block(i, k);  // the diagonal, and weak blocks lumped into it
-        continue;
+#pragma omp parallel if (n > parallel_rows)
+  {
+    std::vector<int> where(nc);  // column -> its block in the current row
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (agg[i] < 0) continue;
+      for (int k = orp[i]; k < orp[i + 1]; ++k) where[oc[k]] = k;
+      const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+      Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+        const int j = A.col[k];
+        if (j == i || !used(i, k)) {
+          Aii += A.block(i, k);  // the diagonal, and weak blocks lumped into it
+          continue;
+        }
+        const Mat<B> W = omega * Di * A.block(i, k);
+        for (int q = pr[j]; q < pr[j + 1]; ++q) out.block(where[pc[q]]).noalias() -= W * P.block(q);
       }
-      const Mat<B> W = omega * Di * A.block(i, k);
-      for (int q = pr[j]; q < pr[j + 1]; ++q) out.block(slot(i, pc[q])).noalias() -= W * P.block(q);
+      const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
+      for (int q = pr[i]; q < pr[i + 1]; ++q) out.block(where[pc[q]]).noalias() += G * P.block(q);
     }
-    const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
-    for (int q = pr[i]; q < pr[i + 1]; ++q) out.block(slot(i, pc[q])).noalias() += G * P.block(q);
   }
   return out;
 }
