@@ -105,6 +105,14 @@ double min_symmetric_eigenvalue(const Eigen::MatrixXd& B) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (B + B.transpose())).eigenvalues().minCoeff();
 }
 
+/// The preconditioner's map, checked symmetric to 1e-12 and positive definite.
+Eigen::MatrixXd checked_spd_map(const SaAmg& sa, int N) {
+  const Eigen::MatrixXd B = assemble_preconditioner(sa, N);
+  CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
+  CHECK(min_symmetric_eigenvalue(B) > 0);
+  return B;
+}
+
 /// Dense D^-1 A similarity: eigenvalues of L^-1 A L^-T with D = blockdiag(A_ii) = L L^T.
 Eigen::VectorXd jacobi_spectrum(const Eigen::MatrixXd& A, int b) {
   Eigen::MatrixXd D = Eigen::MatrixXd::Zero(A.rows(), A.cols());
@@ -322,91 +330,90 @@ TEST_CASE("sa: rank-deficient aggregates are detected and counted") {
   CHECK(run(four, nullptr) == std::pair<int, int>(0, 0));
 }
 
-TEST_CASE("sa: the smoothed prolongator maps Kc to the smoothed near null space") {
+/// The fine level's coarsening pieces of a small irregular cloth, and dense copies to check
+/// the prolongator smoothing against: D^-1 and the filtered matrix A_f.
+struct SmoothingCase {
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
-  const auto A = bsr_view(p.Ahat);
-  const int n = A.rows;
+  BsrView<3, 3> A = bsr_view(p.Ahat);
+  int n = A.rows;
   std::vector<double> mu, Dinv;
   std::vector<std::uint8_t> strong, special;
-  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
-  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
-  const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
-  const NullSpace K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
-  const sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
-  invert_block_diagonal<3>(A, Dinv);
-  const double omega = 0.7;
-  const Eigen::MatrixXd Ad = p.Ahat.to_dense();
-  Eigen::MatrixXd Dinvd = Eigen::MatrixXd::Zero(3 * n, 3 * n);
-  for (int i = 0; i < n; ++i) Dinvd.block<3, 3>(3 * i, 3 * i) = Eigen::Map<const BlockOf<3, 3>>(Dinv.data() + 9 * i);
-  Eigen::MatrixXd Khat = K;  // = Phat Kc: special rows zero
-  for (int i = 0; i < n; ++i)
-    if (special[i]) Khat.middleRows<3>(3 * i).setZero();
-  for (bool filtered : {false, true}) {
-    CAPTURE(filtered);
-    const std::vector<std::uint8_t>* s = filtered ? &strong : nullptr;
-    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(A, s, ag);
-    sa::prolongator_values<3>(A, Dinv, s, ag, t, omega, P);
-    Eigen::MatrixXd Af = Ad;
+  sa::Aggregates ag;
+  NullSpace K;
+  sa::Tentative t;
+  Eigen::MatrixXd Dinvd;
+  SmoothingCase() {
+    sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+    sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+    ag = sa::aggregate<3>(A, strong, special);
+    K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
+    t = sa::tentative_prolongator<3>(ag, K, 1e-10);
+    invert_block_diagonal<3>(A, Dinv);
+    Dinvd = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+    for (int i = 0; i < n; ++i) Dinvd.block<3, 3>(3 * i, 3 * i) = Eigen::Map<const BlockOf<3, 3>>(Dinv.data() + 9 * i);
+  }
+  /// A with its weak blocks lumped into the diagonal (filtered) or A itself.
+  Eigen::MatrixXd Af(bool filtered) const {
+    const Eigen::MatrixXd Ad = p.Ahat.to_dense();
+    Eigen::MatrixXd out = Ad;
     if (filtered)
       for (int i = 0; i < n; ++i)
         for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
           const int j = A.col[k];
           if (j == i || strong[k]) continue;
-          Af.block<3, 3>(3 * i, 3 * i) += Ad.block<3, 3>(3 * i, 3 * j);
-          Af.block<3, 3>(3 * i, 3 * j).setZero();
+          out.block<3, 3>(3 * i, 3 * i) += Ad.block<3, 3>(3 * i, 3 * j);
+          out.block<3, 3>(3 * i, 3 * j).setZero();
         }
-    Eigen::MatrixXd expected = Khat - omega * Dinvd * Af * Khat;
+    return out;
+  }
+  /// Z: special nodes get no interpolation.
+  void zero_special_rows(Eigen::MatrixXd& M) const {
     for (int i = 0; i < n; ++i)
-      if (special[i]) expected.middleRows<3>(3 * i).setZero();  // special rows hold nothing
-    const Eigen::MatrixXd PK = P.to_dense() * t.Kc;
-    CHECK((PK - expected).norm() <= 1e-12 * expected.norm());
+      if (special[i]) M.middleRows<3>(3 * i).setZero();
+  }
+  template <int R>
+  void check_special_rows_empty(const BlockMatrix<R, 6>& P) const {
     for (int i = 0; i < n; ++i)
       if (special[i]) CHECK(P.row_ptr()[i + 1] == P.row_ptr()[i]);  // no stored entries
-    REQUIRE(P.nnz() > n / 2);
+  }
+};
+
+TEST_CASE("sa: the smoothed prolongator maps Kc to the smoothed near null space") {
+  const SmoothingCase c;
+  const double omega = 0.7;
+  Eigen::MatrixXd Khat = c.K;  // = Phat Kc: special rows zero
+  c.zero_special_rows(Khat);
+  for (bool filtered : {false, true}) {
+    CAPTURE(filtered);
+    const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
+    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(c.A, s, c.ag);
+    sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P);
+    Eigen::MatrixXd expected = Khat - omega * c.Dinvd * c.Af(filtered) * Khat;
+    c.zero_special_rows(expected);  // special rows hold nothing
+    const Eigen::MatrixXd PK = P.to_dense() * c.t.Kc;
+    CHECK((PK - expected).norm() <= 1e-12 * expected.norm());
+    c.check_special_rows_empty(P);
+    REQUIRE(P.nnz() > c.n / 2);
   }
 }
 
 TEST_CASE("sa: a second prolongator smoothing step is the one-step prolongator smoothed again") {
-  Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
-  const auto A = bsr_view(p.Ahat);
-  const int n = A.rows;
-  std::vector<double> mu, Dinv;
-  std::vector<std::uint8_t> strong, special;
-  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
-  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
-  const sa::Aggregates ag = sa::aggregate<3>(A, strong, special);
-  const NullSpace K = sa::rigid_body_modes(p.sys.x, &p.sys.pins);
-  const sa::Tentative t = sa::tentative_prolongator<3>(ag, K, 1e-10);
-  invert_block_diagonal<3>(A, Dinv);
-  REQUIRE(std::count(special.begin(), special.end(), 1) > 0);  // the Z rows are exercised
+  const SmoothingCase c;
+  REQUIRE(std::count(c.special.begin(), c.special.end(), 1) > 0);  // the Z rows are exercised
   const double omega = 0.7;
-  const Eigen::MatrixXd Ad = p.Ahat.to_dense();
-  Eigen::MatrixXd Dinvd = Eigen::MatrixXd::Zero(3 * n, 3 * n);
-  for (int i = 0; i < n; ++i) Dinvd.block<3, 3>(3 * i, 3 * i) = Eigen::Map<const BlockOf<3, 3>>(Dinv.data() + 9 * i);
   for (bool filtered : {false, true}) {
     CAPTURE(filtered);
-    const std::vector<std::uint8_t>* s = filtered ? &strong : nullptr;
-    BlockMatrix<3, 6> P1 = sa::prolongator_pattern<3>(A, s, ag);
-    sa::prolongator_values<3>(A, Dinv, s, ag, t, omega, P1);
-    const BlockMatrix<3, 6> P2 = sa::smooth_prolongator<3>(A, Dinv, s, ag, omega, P1);
-    Eigen::MatrixXd Af = Ad;
-    if (filtered)
-      for (int i = 0; i < n; ++i)
-        for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-          const int j = A.col[k];
-          if (j == i || strong[k]) continue;
-          Af.block<3, 3>(3 * i, 3 * i) += Ad.block<3, 3>(3 * i, 3 * j);
-          Af.block<3, 3>(3 * i, 3 * j).setZero();
-        }
+    const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
+    BlockMatrix<3, 6> P1 = sa::prolongator_pattern<3>(c.A, s, c.ag);
+    sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P1);
+    const BlockMatrix<3, 6> P2 = sa::smooth_prolongator<3>(c.A, c.Dinv, s, c.ag, omega, P1);
     const Eigen::MatrixXd P1d = P1.to_dense();
-    Eigen::MatrixXd expected = P1d - omega * Dinvd * Af * P1d;
-    for (int i = 0; i < n; ++i)
-      if (special[i]) expected.middleRows<3>(3 * i).setZero();
+    Eigen::MatrixXd expected = P1d - omega * c.Dinvd * c.Af(filtered) * P1d;
+    c.zero_special_rows(expected);
     CHECK((P2.to_dense() - expected).norm() <= 1e-12 * expected.norm());
     CHECK((expected - P1d).norm() > 1e-3 * P1d.norm());  // the step acts
     CHECK(P2.nnz() > P1.nnz());                          // on a wider pattern
-    for (int i = 0; i < n; ++i)
-      if (special[i]) CHECK(P2.row_ptr()[i + 1] == P2.row_ptr()[i]);
+    c.check_special_rows_empty(P2);
   }
 }
 
@@ -429,9 +436,7 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
       const long long wider = two.stats().levels[l].nnz_p, narrow = one.stats().levels[l].nnz_p;
       if (l < levels) CHECK(wider > narrow);
     }
-    const Eigen::MatrixXd B = assemble_preconditioner(two, N);
-    CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
-    CHECK(min_symmetric_eigenvalue(B) > 0);
+    const Eigen::MatrixXd B = checked_spd_map(two, N);
     // Reuse of the aggregates rebuilds the wider P on the kept structure: the same map.
     prm.reuse = SaReuse::aggregates;
     SaAmg re(prm);
@@ -557,9 +562,7 @@ TEST_CASE("sa: the V-cycle preconditioner is a symmetric positive definite map")
     SaAmg sa(small_coarse(8));
     REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(sa.levels() >= 3);
-    const Eigen::MatrixXd B = assemble_preconditioner(sa, N);
-    CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
-    CHECK(min_symmetric_eigenvalue(B) > 0);
+    const Eigen::MatrixXd B = checked_spd_map(sa, N);
     // Negative control: an interval with a + b < lambda_max makes B indefinite.
     SaAmg::Params prm = small_coarse(8);
     prm.lambda_bound = LambdaBound::ritz;
@@ -587,9 +590,7 @@ TEST_CASE("sa: the W-cycle on the first coarse levels is a symmetric positive de
     prm.cycle_gamma_levels = depth;
     SaAmg w(prm);
     REQUIRE(w.setup(p.Ahat, ctx) == Status::success);
-    const Eigen::MatrixXd B = assemble_preconditioner(w, N);
-    CHECK((B - B.transpose()).norm() <= 1e-12 * B.norm());
-    CHECK(min_symmetric_eigenvalue(B) > 0);
+    const Eigen::MatrixXd B = checked_spd_map(w, N);
     CHECK((B - Bv).norm() > 1e-6 * Bv.norm());  // the extra coarse cycle acts
     // A better coarse solve: the preconditioned spectrum is tighter than the V-cycle's.
     auto condition = [&](const Eigen::MatrixXd& M) {
