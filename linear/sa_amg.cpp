@@ -473,8 +473,6 @@ void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv,
   }
 }
 
-
-
 template <int B>
 BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<double>& Dinv,
                                      const std::vector<std::uint8_t>* strong, const Aggregates& aggs, double omega,
