@@ -135,6 +135,8 @@ TEST_SUITE("apps") {
       CHECK(implicit_mem[key] < sa_mem[key]);
     }
     CHECK(slurp(dir / "bench_linear.md").find("Table 11.1") != std::string::npos);
+    for (const char* s : {"## Multigrid hierarchies", "| pinned | regular | 961 | SA+PPCG | 1 |", "galerkin"})
+      CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
     fs::remove_all(dir);
   }
 
