@@ -28,6 +28,7 @@
 #include "apps/bench_common.hpp"
 #include "apps/runner.hpp"
 #include "framework/params_json.hpp"
+#include "linear/sa_amg.hpp"
 
 namespace weft::app {
 namespace {
@@ -138,8 +139,8 @@ struct SolverStats {
   std::size_t memory_max = 0;
   int levels = 0;
   double operator_complexity = 0;
-  std::vector<LevelRecord> hierarchy;  // of the first setup (multigrid only)
-  std::map<std::string, double> setup_split;  // summed over the setups (multigrid only)
+  std::vector<weft::linear::SaLevelStats> hierarchy;  // of the first setup (multigrid only)
+  std::map<std::string, double> setup_split;    // summed over the setups (multigrid only)
   std::string message;  // first failure
   static double mean(const std::vector<double>& v) { return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / v.size(); }
   static double median(std::vector<double> v) {
@@ -151,6 +152,12 @@ struct SolverStats {
   double mean_iterations() const { return solves ? iterations / solves : 0; }
   double mean_rate() const { return rate_count ? rate / rate_count : 0; }
   double mean_energy() const { return energy_count ? energy / energy_count : -1; }
+  /// Seconds per setup by phase (every solve has its setup).
+  std::map<std::string, double> mean_setup_split() const {
+    std::map<std::string, double> out;
+    for (const auto& [phase, seconds] : setup_split) out[phase] = solves > 0 ? seconds / solves : 0.0;
+    return out;
+  }
 };
 
 struct CaseResult {
@@ -311,18 +318,11 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
 }
 
 /// The hierarchy as the jsonl records it: one object per level, finest first.
-Json hierarchy_json(const std::vector<LevelRecord>& levels) {
+Json hierarchy_json(const std::vector<weft::linear::SaLevelStats>& levels) {
   Json out = Json::array();
-  for (const LevelRecord& l : levels)
+  for (const weft::linear::SaLevelStats& l : levels)
     out.push_back({{"nodes", l.rows}, {"block_size", l.block_size}, {"blocks", l.nnz_blocks}, {"special", l.special},
                    {"aggregates", l.aggregates}, {"max_aggregate", l.max_aggregate}, {"p_blocks", l.nnz_p}, {"lambda", l.lambda}});
-  return out;
-}
-
-/// Mean seconds per setup by phase.
-Json split_json(const std::map<std::string, double>& split, int setups) {
-  Json out = Json::object();
-  for (const auto& [phase, seconds] : split) out[phase] = setups > 0 ? seconds / setups : 0.0;
   return out;
 }
 
@@ -507,7 +507,7 @@ int bench_linear(const BenchLinearOptions& opt) {
                {"levels", s.levels},
                {"operator_complexity", s.operator_complexity},
                {"hierarchy", hierarchy_json(s.hierarchy)},
-               {"mean_setup_split_s", split_json(s.setup_split, s.solves)},
+               {"mean_setup_split_s", s.mean_setup_split()},
                {"message", s.message}};
         jl << j.dump() << "\n";
         csv << fmt::format("{},{},{},{},{},{},{},{},{:.3f},{:.5f},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3e},{:.3e},{:.3e},{:.3e},{},{},{},"
@@ -664,7 +664,7 @@ int bench_linear(const BenchLinearOptions& opt) {
     for (const auto& r : results)
       for (const auto& s : r.solvers)
         for (size_t l = 0; l < s.hierarchy.size(); ++l) {
-          const LevelRecord& h = s.hierarchy[l];
+          const weft::linear::SaLevelStats& h = s.hierarchy[l];
           const double rows = std::max(1, h.rows);
           w(fmt::format("| {} | {} | {} | {} | {} | {} | {:.1f} | {} | {} | {:.2f} |\n", ex_name(r.example),
                         tess_name(r.tessellation), r.vertices, s.label, l, h.rows, h.nnz_blocks / rows,
@@ -676,8 +676,8 @@ int bench_linear(const BenchLinearOptions& opt) {
       for (const auto& s : r.solvers) {
         if (s.setup_split.empty()) continue;
         std::string parts;
-        for (const auto& [phase, seconds] : s.setup_split)
-          parts += fmt::format("{}{} {}", parts.empty() ? "" : ", ", phase, fmt_ms(s.solves > 0 ? seconds / s.solves : 0.0));
+        for (const auto& [phase, seconds] : s.mean_setup_split())
+          parts += fmt::format("{}{} {}", parts.empty() ? "" : ", ", phase, fmt_ms(seconds));
         w(fmt::format("| {} | {} | {} | {} | {} |\n", ex_name(r.example), tess_name(r.tessellation), r.vertices, s.label, parts));
       }
   }

@@ -24,6 +24,10 @@
 #include "framework/constraints.hpp"
 #include "framework/status.hpp"
 
+namespace weft::linear {
+struct SaLevelStats;  // linear/sa_amg.hpp
+}
+
 namespace weft::app {
 
 struct BenchLinearOptions {
@@ -50,13 +54,6 @@ int bench_linear(const BenchLinearOptions& options);
 
 namespace benchlin {
 
-/// One level of a multigrid hierarchy as the bench records it (from `linear::SaLevelStats`).
-struct LevelRecord {
-  int rows = 0, block_size = 0, aggregates = 0, max_aggregate = 0, special = 0;
-  long long nnz_blocks = 0, nnz_p = 0;
-  double lambda = 0;
-};
-
 /// A linear solver behind a virtual interface (the LinearSolver life cycle plus the context).
 class AnySolver {
  public:
@@ -70,9 +67,9 @@ class AnySolver {
   /// A known solution for the solver's own energy-error report; false if it has none.
   virtual bool set_reference(const Eigen::VectorXd* x_star) = 0;
   /// The multigrid hierarchy of the last setup, finest level first (empty: no multigrid).
-  virtual std::vector<LevelRecord> hierarchy() const { return {}; }
+  virtual std::vector<weft::linear::SaLevelStats> hierarchy() const = 0;
   /// The last setup's time split [s] by phase (empty: no multigrid).
-  virtual std::vector<std::pair<std::string, double>> setup_split() const { return {}; }
+  virtual std::vector<std::pair<std::string, double>> setup_split() const = 0;
 };
 
 /// One solver this build provides.

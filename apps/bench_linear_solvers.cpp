@@ -55,13 +55,11 @@ class Adapter final : public AnySolver {
       return false;
     }
   }
-  std::vector<LevelRecord> hierarchy() const override {
-    std::vector<LevelRecord> out;
-    if constexpr (requires(const L& l) { l.preconditioner().stats().levels; }) {
-      for (const auto& s : solver_.preconditioner().stats().levels)
-        out.push_back({s.rows, s.block_size, s.aggregates, s.max_aggregate, s.special, s.nnz_blocks, s.nnz_p, s.lambda});
-    }
-    return out;
+  std::vector<weft::linear::SaLevelStats> hierarchy() const override {
+    if constexpr (requires(const L& l) { l.preconditioner().stats().levels; })
+      return solver_.preconditioner().stats().levels;
+    else
+      return {};
   }
   std::vector<std::pair<std::string, double>> setup_split() const override {
     if constexpr (requires(const L& l) { l.preconditioner().stats().times; }) {
@@ -130,20 +128,18 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   using linear::SaPpcg;
   list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
                   maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
-  {
-    SaPpcg::Params implicit = sa_krylov<SaPpcg>(s);
-    implicit.preconditioner.implicit_prolongator = true;
-    list.push_back({"sa_ppcg_implicit", "SA+PPCG implicit P",
-                    "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)", false,
-                    maker<SaPpcg>(implicit)});
-  }
-  {
-    SaPpcg::Params p2 = sa_krylov<SaPpcg>(s);
-    p2.preconditioner.prolongator_degree = 2;
-    list.push_back({"sa_ppcg_p2", "SA+PPCG P degree 2",
-                    "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)", false,
-                    maker<SaPpcg>(p2)});
-  }
+  // SA+PPCG with one preconditioner setting changed, to run beside the default in one run.
+  auto variant = [&](std::string key, std::string label, std::string description, auto change) {
+    SaPpcg::Params p = sa_krylov<SaPpcg>(s);
+    change(p.preconditioner);
+    list.push_back({std::move(key), std::move(label), std::move(description), false, maker<SaPpcg>(p)});
+  };
+  variant("sa_ppcg_implicit", "SA+PPCG implicit P",
+          "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)",
+          [](linear::SaAmg::Params& p) { p.implicit_prolongator = true; });
+  variant("sa_ppcg_p2", "SA+PPCG P degree 2",
+          "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
+          [](linear::SaAmg::Params& p) { p.prolongator_degree = 2; });
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

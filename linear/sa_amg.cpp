@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <numeric>
 #include <type_traits>
+#include <utility>
 
 #include "framework/error.hpp"
 #include "framework/timers.hpp"
@@ -398,29 +399,18 @@ LanczosResult lanczos(const BsrView<B, B>& A, const std::vector<double>& Dinv, i
   return out;
 }
 
-template <int B>
-BlockMatrix<B, 6> prolongator_pattern(const BsrView<B, B>& A, const std::vector<std::uint8_t>* strong,
-                                      const Aggregates& aggs) {
-  const int n = A.rows;
-  const std::vector<int>& agg = aggs.node_agg;
+/// A block pattern built row by row in two parallel passes (count, then fill):
+/// row_columns(i, mark, cols) lists row i's sorted columns, with `mark` (one int per column,
+/// initially -1, private to the thread) free for deduplication.
+template <class RowColumns>
+std::pair<std::vector<int>, std::vector<int>> build_pattern(int n, int ncols, RowColumns&& row_columns) {
   std::vector<int> ptr(n + 1, 0);
-  auto row_columns = [&](int i, std::vector<int>& cols) {
-    cols.clear();
-    if (agg[i] < 0) return;
-    cols.push_back(agg[i]);
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-      const int j = A.col[k];
-      if (j == i || agg[j] < 0 || (strong && !(*strong)[k])) continue;
-      if (std::find(cols.begin(), cols.end(), agg[j]) == cols.end()) cols.push_back(agg[j]);
-    }
-    std::sort(cols.begin(), cols.end());
-  };
 #pragma omp parallel if (n > parallel_rows)
   {
-    std::vector<int> cols;
+    std::vector<int> mark(ncols, -1), cols;
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
-      row_columns(i, cols);
+      row_columns(i, mark, cols);
       ptr[i + 1] = static_cast<int>(cols.size());
     }
   }
@@ -428,14 +418,50 @@ BlockMatrix<B, 6> prolongator_pattern(const BsrView<B, B>& A, const std::vector<
   std::vector<int> col(ptr[n]);
 #pragma omp parallel if (n > parallel_rows)
   {
-    std::vector<int> cols;
+    std::vector<int> mark(ncols, -1), cols;
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
-      row_columns(i, cols);
+      row_columns(i, mark, cols);
       std::copy(cols.begin(), cols.end(), col.begin() + ptr[i]);
     }
   }
-  return BlockMatrix<B, 6>(n, aggs.count, std::move(ptr), std::move(col));
+  return {std::move(ptr), std::move(col)};
+}
+
+template <int B>
+BlockMatrix<B, 6> prolongator_pattern(const BsrView<B, B>& A, const std::vector<std::uint8_t>* strong,
+                                      const Aggregates& aggs) {
+  const std::vector<int>& agg = aggs.node_agg;
+  auto [ptr, col] = build_pattern(A.rows, aggs.count, [&](int i, std::vector<int>& mark, std::vector<int>& cols) {
+    cols.clear();
+    if (agg[i] < 0) return;
+    mark[agg[i]] = i, cols.push_back(agg[i]);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j == i || agg[j] < 0 || (strong && !(*strong)[k])) continue;
+      if (mark[agg[j]] != i) mark[agg[j]] = i, cols.push_back(agg[j]);
+    }
+    std::sort(cols.begin(), cols.end());
+  });
+  return BlockMatrix<B, 6>(A.rows, aggs.count, std::move(ptr), std::move(col));
+}
+
+/// Row i of one damped Jacobi step with A_f (A with its weak blocks lumped into the diagonal;
+/// strong == nullptr: A itself): calls off(j, W), W = omega D_i^-1 A_ij, for each strong
+/// off-diagonal block and returns G = I - omega D_i^-1 (A_f)_ii.
+template <int B, class Off>
+Mat<B> jacobi_row(const BsrView<B, B>& A, const std::vector<double>& Dinv, const std::vector<std::uint8_t>* strong, int i,
+                  double omega, Off&& off) {
+  const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+  Mat<B> Aii = Mat<B>::Zero();
+  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+    const int j = A.col[k];
+    if (j == i || (strong && !(*strong)[k]))
+      Aii += A.block(i, k);  // the diagonal, and weak blocks lumped into it
+    else
+      off(j, Mat<B>(omega * Di * A.block(i, k)));
+  }
+  return Mat<B>::Identity() - omega * Di * Aii;
 }
 
 template <int B>
@@ -455,20 +481,9 @@ void prolongator_values(const BsrView<B, B>& A, const std::vector<double>& Dinv,
   for (int i = 0; i < n; ++i) {
     for (int k = pr[i]; k < pr[i + 1]; ++k) P.block(k).setZero();
     if (agg[i] < 0) continue;
-    const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
-    Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-      const int j = A.col[k];
-      const Mat<B> Aij = A.block(i, k);
-      if (j == i) {
-        Aii += Aij;
-      } else if (strong && !(*strong)[k]) {
-        Aii += Aij;  // weak: lumped into the diagonal
-      } else if (agg[j] >= 0) {
-        P.block(slot(i, agg[j])).noalias() -= omega * (Di * Aij) * Q(j);
-      }
-    }
-    const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
+    const Mat<B> G = jacobi_row(A, Dinv, strong, i, omega, [&](int j, const Mat<B>& W) {
+      if (agg[j] >= 0) P.block(slot(i, agg[j])).noalias() -= W * Q(j);
+    });
     P.block(slot(i, agg[i])).noalias() += G * Q(i);
   }
 }
@@ -481,41 +496,19 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
   const std::vector<int>& agg = aggs.node_agg;
   const int* pr = P.row_ptr().data();
   const int* pc = P.col().data();
-  auto used = [&](int i, int k) { return A.col[k] == i || !strong || (*strong)[k]; };
   // Row i of the result has the columns of P's rows i and j over A_f's off-diagonal blocks
   // (i, j); zero rows stay zero (Z).
-  auto row_columns = [&](int i, std::vector<int>& mark, std::vector<int>& cols) {
+  auto [ptr, col] = build_pattern(n, nc, [&](int i, std::vector<int>& mark, std::vector<int>& cols) {
     cols.clear();
     if (agg[i] < 0) return;
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-      if (!used(i, k)) continue;
       const int j = A.col[k];
+      if (j != i && strong && !(*strong)[k]) continue;
       for (int q = pr[j]; q < pr[j + 1]; ++q)
         if (mark[pc[q]] != i) mark[pc[q]] = i, cols.push_back(pc[q]);
     }
     std::sort(cols.begin(), cols.end());
-  };
-  std::vector<int> ptr(n + 1, 0);
-#pragma omp parallel if (n > parallel_rows)
-  {
-    std::vector<int> mark(nc, -1), cols;
-#pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
-      row_columns(i, mark, cols);
-      ptr[i + 1] = static_cast<int>(cols.size());
-    }
-  }
-  for (int i = 0; i < n; ++i) ptr[i + 1] += ptr[i];
-  std::vector<int> col(ptr[n]);
-#pragma omp parallel if (n > parallel_rows)
-  {
-    std::vector<int> mark(nc, -1), cols;
-#pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
-      row_columns(i, mark, cols);
-      std::copy(cols.begin(), cols.end(), col.begin() + ptr[i]);
-    }
-  }
+  });
   BlockMatrix<B, 6> out(n, nc, std::move(ptr), std::move(col));
   out.values().assign(static_cast<std::size_t>(B * 6) * out.nnz(), 0.0);
   const int* orp = out.row_ptr().data();
@@ -527,18 +520,9 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
     for (int i = 0; i < n; ++i) {
       if (agg[i] < 0) continue;
       for (int k = orp[i]; k < orp[i + 1]; ++k) where[oc[k]] = k;
-      const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
-      Mat<B> Aii = Mat<B>::Zero();  // diagonal block of A_f
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-        const int j = A.col[k];
-        if (j == i || !used(i, k)) {
-          Aii += A.block(i, k);  // the diagonal, and weak blocks lumped into it
-          continue;
-        }
-        const Mat<B> W = omega * Di * A.block(i, k);
+      const Mat<B> G = jacobi_row(A, Dinv, strong, i, omega, [&](int j, const Mat<B>& W) {
         for (int q = pr[j]; q < pr[j + 1]; ++q) out.block(where[pc[q]]).noalias() -= W * P.block(q);
-      }
-      const Mat<B> G = Mat<B>::Identity() - omega * Di * Aii;
+      });
       for (int q = pr[i]; q < pr[i + 1]; ++q) out.block(where[pc[q]]).noalias() += G * P.block(q);
     }
   }

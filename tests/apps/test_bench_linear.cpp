@@ -107,6 +107,11 @@ TEST_SUITE("apps") {
           CHECK(h[l].at("nodes") == h[l - 1].at("aggregates"));
           CHECK(h[l].at("block_size").get<int>() == 6);
         }
+        // The setup split: every phase timed, and together within the setup the bench timed.
+        const json& split = j.at("mean_setup_split_s");
+        CHECK(split.at("galerkin").get<double>() > 0);
+        CHECK(split.at("total").get<double>() >= split.at("galerkin").get<double>() + split.at("smoothing").get<double>());
+        CHECK(split.at("total").get<double>() <= j.at("mean_setup_s").get<double>());
       } else if (j.at("solver") == "diag_pcg") {
         CHECK(h.empty());
       }
