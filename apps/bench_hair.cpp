@@ -267,6 +267,7 @@ int simulate(const std::string& scene_path, const std::string& strategy, double 
                  {"gs_residual", cr.gs_residual},
                  {"gs_unconverged", cr.gs_unconverged},
                  {"relinearized", cr.relinearized},
+                 {"sp_alternations", cr.sp_alternations},
                  {"capped_groups", cr.capped_groups},
                  {"redetections", cr.redetections},
                  {"del_newton", r.newton.iterations},

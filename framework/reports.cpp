@@ -143,6 +143,7 @@ Json to_json(const ContactReport& r) {
   put("outer_iterations", r.outer_iterations);
   put("max_outer_iterations", r.max_outer_iterations);
   put("relinearized", r.relinearized);
+  put("sp_alternations", r.sp_alternations);
   put("capped_groups", r.capped_groups);
   put("stretched_groups", r.stretched_groups);
   put("contact_newton", r.contact_newton);

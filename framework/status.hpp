@@ -112,6 +112,7 @@ struct ContactReport {
   int outer_iterations = 0;    ///< constrained Newton iterations, summed over the groups
   int max_outer_iterations = 0;  ///< constrained Newton iterations of the group that needed most
   int relinearized = 0;        ///< rod Hessians re-evaluated and refactored after the first iteration, summed
+  int sp_alternations = 0;     ///< staggered projections: alternations (contact problem, then friction problem), summed over the groups and iterations
   int capped_groups = 0;       ///< groups that stopped at the Newton cap above the stretch tolerance
   int stretched_groups = 0;    ///< groups whose constrained Newton converged (the iterate stopped moving) with a rod above the stretch tolerance
   double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
@@ -154,6 +155,7 @@ struct ContactReport {
     outer_iterations += end.outer_iterations;
     max_outer_iterations = std::max(max_outer_iterations, end.max_outer_iterations);
     relinearized += end.relinearized;
+    sp_alternations += end.sp_alternations;
     capped_groups += end.capped_groups;
     stretched_groups += end.stretched_groups;
     max_stretch = end.max_stretch;
