@@ -140,6 +140,12 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   variant("sa_ppcg_p2", "SA+PPCG P degree 2",
           "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
           [](linear::SaAmg::Params& p) { p.prolongator_degree = 2; });
+  variant("sa_ppcg_p2w", "SA+PPCG P degree 2, W",
+          "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
+          [](linear::SaAmg::Params& p) {
+            p.prolongator_degree = 2;
+            p.cycle_gamma = 2;
+          });
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

@@ -216,4 +216,29 @@ TEST_SUITE("slow") {
     CHECK(its[2][400] < its[1][400]);
     fs::remove_all(out);
   }
+
+  // Re-entrant keeps growing under degree 2 alone (2.7x to 752k); a W-cycle on level 1 on top
+  // of it is the configuration that stays within 2x on the three regular examples
+  // (I3-degree-2-w-cycle.md).
+  TEST_CASE("bench: with prolongator_degree 2 and a W-cycle on level 1 the SA+PPCG iterations stay flat on re-entrant") {
+    const fs::path out = temp_dir("bench_linear_p2w");
+    const Result r = run_weft("bench linear --examples re-entrant --tessellations regular --sizes 100 400 --steps 1 "
+                              "--solvers sa_ppcg sa_ppcg_p2 sa_ppcg_p2w --out " + out.string());
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
+    const auto lines = read_jsonl(out / "bench_linear.jsonl");
+    REQUIRE(lines.size() == 7);
+    for (size_t i = 1; i < lines.size(); ++i) {
+      const json& j = lines[i];
+      REQUIRE(j.at("failures").get<int>() == 0);
+      its[j.at("solver").get<std::string>()][j.at("case").at("m").get<int>()] = j.at("mean_iterations").get<double>();
+    }
+    for (const auto& [solver, by_m] : its)
+      MESSAGE(solver << ": " << by_m.at(100) << " iterations at 7,701 vertices, " << by_m.at(400) << " at 120,801");
+    CHECK(its["sa_ppcg"][400] >= 1.8 * its["sa_ppcg"][100]);
+    CHECK(its["sa_ppcg_p2w"][400] <= 1.3 * its["sa_ppcg_p2w"][100]);
+    CHECK(its["sa_ppcg_p2w"][400] < its["sa_ppcg_p2"][400]);
+    fs::remove_all(out);
+  }
 }
