@@ -12,9 +12,9 @@
 ///                          only for over-stretched rods          is stretched > tol
 ///   staggered_projections  refreshed for every rod of the group  as ADONIS                 alternate a contact
 ///                                                                                          (normal) and a friction
-///                                                                                          problem, each by GS to a
-///                                                                                          fraction (`sp_inner`) of
-///                                                                                          the residual left
+///                                                                                          problem, each by GS until
+///                                                                                          a sweep moves less than
+///                                                                                          `sp_inner` x its first
 ///
 /// Per step (Algorithm 6 of the thesis, cleaned in spec 03 §10.8): detection on the
 /// unconstrained trajectory q -> q + d_DEL (rod-rod proximity or CCD, rod-obstacle CCD:
@@ -100,8 +100,8 @@ struct RodContactParams {
   HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
   PredictorUpdate predictor = PredictorUpdate::relinearized;  ///< ADONIS: which rods get a new predictor after the first iteration
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
-  double sp_tol = 1e-6;        ///< staggered projections: relative change of the friction multipliers that stops them
-  double sp_inner = 0.1;       ///< staggered projections: each projection's sweeps stop below sp_inner x the Coulomb residual of the last alternation (0: exact projections)
+  double sp_tol = 1e-6;        ///< staggered projections: relative change of the multipliers that stops them (friction only with exact projections)
+  double sp_inner = 0.1;       ///< staggered projections: a projection's sweeps stop when one changes the multipliers by less than sp_inner x its first did (0: exact projections)
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
   double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
@@ -131,12 +131,13 @@ struct RodContactParams {
              "ADONIS, staggered projections: halve a rod's constrained Newton step until it stays in the model's domain and its "
              "largest edge strain is at most max(10 stretch_tol, twice the iterate's) (false: full steps, the thesis)"});
     v.field("sp_max", sp_max, {Unit::none, Range::closed(1, 100000), "staggered projections: alternations per Newton iteration"});
-    v.field("sp_tol", sp_tol, {Unit::none, Range::gt(0), "staggered projections: relative change of the friction multipliers that stops them"});
+    v.field("sp_tol", sp_tol,
+            {Unit::none, Range::gt(0),
+             "staggered projections: relative change of the multipliers that stops them (of the friction ones alone when sp_inner = 0)"});
     v.field("sp_inner", sp_inner,
             {Unit::none, Range::closed(0, 1),
              "staggered projections: inexact projections - each projection's Gauss-Seidel stops when a sweep changes the multipliers by "
-             "less than sp_inner times the group's Coulomb residual after the previous alternation (0: every projection solved to "
-             "1e-3 contact_tol)"});
+             "less than sp_inner times its first sweep did (0: every projection solved to 1e-3 contact_tol)"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
     v.field("overlap_tol", overlap_tol,
             {Unit::none, Range::closed(0, 1),
@@ -506,8 +507,9 @@ class RodResponse {
         // changes the multipliers by less than sp_inner times its first sweep did, so the
         // error left in a projection shrinks with the progress of the alternation; an exact
         // projection far from the fixed point is wasted work (on the 250-rod ball at 10 ms,
-        // 7x less time for the same steps: docs/rods.md). Inexact projections can leave the friction multipliers still
-        // while the normal ones are unsolved (mu = 0), so there both must stop changing.
+        // 9x less time for the same steps: docs/rods.md). Inexact projections can leave the
+        // friction multipliers still while the normal ones are unsolved (mu = 0), so there
+        // both must stop changing.
         std::vector<Eigen::Vector3d> before(ids.size());
         for (int sp = 0; sp < prm_.sp_max; ++sp) {
           ++st.sp_iterations;
