@@ -384,7 +384,14 @@ int bench_linear(const BenchLinearOptions& opt) {
   } else {
     for (const auto& key : opt.solvers) {
       auto it = std::find_if(all.begin(), all.end(), [&](const SolverEntry& e) { return e.key == key; });
-      if (it == all.end()) {
+      if (key.find(':') != std::string::npos) {  // sa_ppcg with its own settings
+        try {
+          if (std::none_of(chosen.begin(), chosen.end(), [&](const SolverEntry& e) { return e.key == key; }))
+            chosen.push_back(sa_ppcg_with(settings, key));
+        } catch (const ConfigError& e) {
+          errors.push_back(fmt::format("--solvers: {}", e.what()));
+        }
+      } else if (it == all.end()) {
         std::string avail;
         for (const auto& e : all) avail += (avail.empty() ? "" : ", ") + e.key;
         errors.push_back(fmt::format("--solvers: '{}' is not available in this build (available: {})", key, avail));

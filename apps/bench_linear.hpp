@@ -90,5 +90,10 @@ struct SolverSettings {
 /// Every solver of this build, in report order (apps/bench_linear_solvers.cpp).
 std::vector<SolverEntry> available_solvers(const SolverSettings& settings);
 
+/// "sa_ppcg:KEY=VALUE[:KEY=VALUE...]": SA+PPCG with these preconditioner settings on top of
+/// --sa, so that settings are compared side by side in one run. Throws ConfigError naming a
+/// bad base solver, key or value.
+SolverEntry sa_ppcg_with(const SolverSettings& settings, const std::string& token);
+
 }  // namespace benchlin
 }  // namespace weft::app

@@ -112,6 +112,23 @@ typename L::Params sa_krylov(const SolverSettings& s) {
 
 }  // namespace
 
+SolverEntry sa_ppcg_with(const SolverSettings& s, const std::string& token) {
+  std::vector<std::string> parts;
+  for (size_t pos = 0;;) {
+    const size_t c = token.find(':', pos);
+    parts.push_back(token.substr(pos, c == std::string::npos ? std::string::npos : c - pos));
+    if (c == std::string::npos) break;
+    pos = c + 1;
+  }
+  if (parts.front() != "sa_ppcg")
+    throw ConfigError("invalid --solvers entry:", {fmt::format("'{}': only sa_ppcg takes settings (sa_ppcg:KEY=VALUE[:KEY=VALUE...])", token)});
+  SolverSettings t = s;
+  t.sa_settings.insert(t.sa_settings.end(), parts.begin() + 1, parts.end());
+  const std::vector<std::string> own(parts.begin() + 1, parts.end());
+  return {token, fmt::format("SA+PPCG {}", fmt::join(own, " ")), fmt::format("SA+PPCG with {}", fmt::join(own, ", ")), false,
+          maker<linear::SaPpcg>(sa_krylov<linear::SaPpcg>(t))};
+}
+
 std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   std::vector<SolverEntry> list;
 #ifdef WEFT_WITH_CHOLMOD

@@ -93,7 +93,9 @@ int main(int argc, char** argv) {
   cmd_bench_linear->add_option("--sizes", bench_linear.sizes, "grid intervals m, (m+1)^2 vertices (default: 30 40 60 80 100 150 200 300 400 600 800 1000)")
       ->check(CLI::Range(4, 4000));
   cmd_bench_linear->add_option("--max-vertices", bench_linear.max_vertices, "skip sizes with more vertices")->check(CLI::PositiveNumber);
-  cmd_bench_linear->add_option("--solvers", bench_linear.solvers, "solvers to compare (default: all available; see --list-solvers)");
+  cmd_bench_linear->add_option("--solvers", bench_linear.solvers,
+                               "solvers to compare (default: all available; see --list-solvers); sa_ppcg:KEY=VALUE[:KEY=VALUE...] "
+                               "adds SA+PPCG with those linear.preconditioner settings, e.g. sa_ppcg:theta=0.25");
   cmd_bench_linear->add_flag("--list-solvers", bench_linear.list_solvers, "print the solvers of this build and exit");
   cmd_bench_linear->add_option("--sa", bench_linear.sa_settings,
                                "KEY=VALUE settings of the SA preconditioner of sa_ppcg and sa_mpcg, the keys of a scene's "

@@ -183,6 +183,38 @@ TEST_SUITE("apps") {
     MESSAGE("mean SA+PPCG iterations at 1681 vertices: V-cycle " << its[1] << ", W-cycle " << its[2]);
     CHECK(its[2] < its[1]);
   }
+
+  TEST_CASE("bench: weft bench linear --solvers sa_ppcg:KEY=VALUE runs SA+PPCG with those settings beside the default") {
+    const fs::path out = temp_dir("bench_linear_with");
+    const Result r = run_weft("bench linear --quick --examples pinned --tessellations regular --solvers sa_ppcg sa_ppcg:theta=0.25 "
+                              "sa_ppcg:theta=0.25:cycle_gamma=2 --out " + out.string());
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    std::map<std::string, json> by_solver;
+    for (const json& j : read_jsonl(out / "bench_linear.jsonl"))
+      if (j.contains("solver")) by_solver[j.at("solver").get<std::string>()] = j;
+    REQUIRE(by_solver.size() == 3);
+    REQUIRE(by_solver.count("sa_ppcg:theta=0.25") == 1);
+    REQUIRE(by_solver.count("sa_ppcg:theta=0.25:cycle_gamma=2") == 1);
+    // A lower strength threshold merges more nodes per aggregate: fewer level-1 nodes.
+    const auto level1 = [&](const std::string& s) { return by_solver.at(s).at("hierarchy")[1].at("nodes").get<int>(); };
+    MESSAGE("level-1 nodes: theta 0.48 " << level1("sa_ppcg") << ", theta 0.25 " << level1("sa_ppcg:theta=0.25"));
+    CHECK(level1("sa_ppcg:theta=0.25") < level1("sa_ppcg"));
+    CHECK(level1("sa_ppcg:theta=0.25:cycle_gamma=2") == level1("sa_ppcg:theta=0.25"));
+    CHECK(slurp(out / "bench_linear.md").find("SA+PPCG theta=0.25 cycle_gamma=2") != std::string::npos);
+    // Bad entries are named before any work starts.
+    for (const auto& [entry, message] : {std::pair<std::string, std::string>{"sa_ppcg:theta=2", "theta = 2 is out of range"},
+                                         {"diag_pcg:theta=0.3", "only sa_ppcg takes settings"},
+                                         {"sa_ppcg:nosuch=1", "nosuch is not a known key"}}) {
+      const Result bad = run_weft("bench linear --quick --examples pinned --tessellations regular --solvers " + entry + " --out " +
+                                  (out / "bad").string());
+      CAPTURE(bad.output);
+      CHECK(bad.code == 2);
+      CHECK(bad.output.find(message) != std::string::npos);
+      CHECK_FALSE(fs::exists(out / "bad"));
+    }
+    fs::remove_all(out);
+  }
 }
 
 TEST_SUITE("slow") {
