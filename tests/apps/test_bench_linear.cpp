@@ -27,6 +27,17 @@ std::vector<std::string> split_lines(const std::string& s) {
   return lines;
 }
 
+/// `weft bench linear ARGS --out OUT`, required to succeed: its records of solver results.
+std::vector<json> bench_results(const std::string& args, const fs::path& out) {
+  const Result r = run_weft("bench linear " + args + " --out " + out.string());
+  CAPTURE(r.output);
+  REQUIRE(r.code == 0);
+  std::vector<json> results;
+  for (const json& j : read_jsonl(out / "bench_linear.jsonl"))
+    if (j.contains("solver")) results.push_back(j);
+  return results;
+}
+
 }  // namespace
 
 TEST_SUITE("apps") {
@@ -186,13 +197,10 @@ TEST_SUITE("apps") {
 
   TEST_CASE("bench: weft bench linear --solvers sa_ppcg:KEY=VALUE runs SA+PPCG with those settings beside the default") {
     const fs::path out = temp_dir("bench_linear_with");
-    const Result r = run_weft("bench linear --quick --examples pinned --tessellations regular --solvers sa_ppcg sa_ppcg:theta=0.25 "
-                              "sa_ppcg:theta=0.25:cycle_gamma=2 --out " + out.string());
-    CAPTURE(r.output);
-    REQUIRE(r.code == 0);
     std::map<std::string, json> by_solver;
-    for (const json& j : read_jsonl(out / "bench_linear.jsonl"))
-      if (j.contains("solver")) by_solver[j.at("solver").get<std::string>()] = j;
+    for (const json& j : bench_results("--quick --examples pinned --tessellations regular --solvers sa_ppcg sa_ppcg:theta=0.25 "
+                                       "sa_ppcg:theta=0.25:cycle_gamma=2", out))
+      by_solver[j.at("solver").get<std::string>()] = j;
     REQUIRE(by_solver.size() == 3);
     REQUIRE(by_solver.count("sa_ppcg:theta=0.25") == 1);
     REQUIRE(by_solver.count("sa_ppcg:theta=0.25:cycle_gamma=2") == 1);
@@ -254,15 +262,11 @@ TEST_SUITE("slow") {
   // (I3-degree-2-w-cycle.md).
   TEST_CASE("bench: with prolongator_degree 2 and a W-cycle on level 1 the SA+PPCG iterations stay flat on re-entrant") {
     const fs::path out = temp_dir("bench_linear_p2w");
-    const Result r = run_weft("bench linear --examples re-entrant --tessellations regular --sizes 100 400 --steps 1 "
-                              "--solvers sa_ppcg sa_ppcg_p2 sa_ppcg_p2w --out " + out.string());
-    CAPTURE(r.output);
-    REQUIRE(r.code == 0);
     std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
-    const auto lines = read_jsonl(out / "bench_linear.jsonl");
-    REQUIRE(lines.size() == 7);
-    for (size_t i = 1; i < lines.size(); ++i) {
-      const json& j = lines[i];
+    const auto results =
+        bench_results("--examples re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_p2 sa_ppcg_p2w", out);
+    REQUIRE(results.size() == 6);
+    for (const json& j : results) {
       REQUIRE(j.at("failures").get<int>() == 0);
       its[j.at("solver").get<std::string>()][j.at("case").at("m").get<int>()] = j.at("mean_iterations").get<double>();
     }
