@@ -112,6 +112,18 @@ typename L::Params sa_krylov(const SolverSettings& s) {
 
 }  // namespace
 
+namespace {
+
+/// SA+PPCG with `settings` (linear.preconditioner KEY=VALUE) on top of --sa.
+SolverEntry sa_ppcg_entry(const SolverSettings& s, std::string key, std::string label, std::string description,
+                          const std::vector<std::string>& settings) {
+  SolverSettings t = s;
+  t.sa_settings.insert(t.sa_settings.end(), settings.begin(), settings.end());
+  return {std::move(key), std::move(label), std::move(description), false, maker<linear::SaPpcg>(sa_krylov<linear::SaPpcg>(t))};
+}
+
+}  // namespace
+
 SolverEntry sa_ppcg_with(const SolverSettings& s, const std::string& token) {
   std::vector<std::string> parts;
   for (size_t pos = 0;;) {
@@ -122,11 +134,8 @@ SolverEntry sa_ppcg_with(const SolverSettings& s, const std::string& token) {
   }
   if (parts.front() != "sa_ppcg")
     throw ConfigError("invalid --solvers entry:", {fmt::format("'{}': only sa_ppcg takes settings (sa_ppcg:KEY=VALUE[:KEY=VALUE...])", token)});
-  SolverSettings t = s;
-  t.sa_settings.insert(t.sa_settings.end(), parts.begin() + 1, parts.end());
   const std::vector<std::string> own(parts.begin() + 1, parts.end());
-  return {token, fmt::format("SA+PPCG {}", fmt::join(own, " ")), fmt::format("SA+PPCG with {}", fmt::join(own, ", ")), false,
-          maker<linear::SaPpcg>(sa_krylov<linear::SaPpcg>(t))};
+  return sa_ppcg_entry(s, token, fmt::format("SA+PPCG {}", fmt::join(own, " ")), fmt::format("SA+PPCG with {}", fmt::join(own, ", ")), own);
 }
 
 std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
@@ -145,24 +154,16 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   using linear::SaPpcg;
   list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
                   maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
-  // SA+PPCG with one preconditioner setting changed, to run beside the default in one run.
-  auto variant = [&](std::string key, std::string label, std::string description, auto change) {
-    SaPpcg::Params p = sa_krylov<SaPpcg>(s);
-    change(p.preconditioner);
-    list.push_back({std::move(key), std::move(label), std::move(description), false, maker<SaPpcg>(p)});
-  };
-  variant("sa_ppcg_implicit", "SA+PPCG implicit P",
-          "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)",
-          [](linear::SaAmg::Params& p) { p.implicit_prolongator = true; });
-  variant("sa_ppcg_p2", "SA+PPCG P degree 2",
-          "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
-          [](linear::SaAmg::Params& p) { p.prolongator_degree = 2; });
-  variant("sa_ppcg_p2w", "SA+PPCG P degree 2, W",
-          "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
-          [](linear::SaAmg::Params& p) {
-            p.prolongator_degree = 2;
-            p.cycle_gamma = 2;
-          });
+  // SA+PPCG with named settings changed, to run beside the default in one run.
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_implicit", "SA+PPCG implicit P",
+                               "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)",
+                               {"implicit_prolongator=true"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2", "SA+PPCG P degree 2",
+                               "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
+                               {"prolongator_degree=2"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2w", "SA+PPCG P degree 2, W",
+                               "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
+                               {"prolongator_degree=2", "cycle_gamma=2"}));
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

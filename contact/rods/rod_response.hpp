@@ -533,9 +533,9 @@ class RodResponse {
           }
           const bool still = beta_change <= prm_.sp_tol * std::max(beta_norm, 1e-300) &&
                              (prm_.sp_inner == 0 || alpha_change <= prm_.sp_tol * std::max(alpha_norm, 1e-300));
-          if (still || contact_error(contacts_, ids, xs) <= prm_.contact_tol) break;
+          st.residual = contact_error(contacts_, ids, xs);
+          if (still || st.residual <= prm_.contact_tol) break;
         }
-        st.residual = contact_error(contacts_, ids, xs);
       } else {
         int sweeps = 0;
         double err = contact_error(contacts_, ids, xs);
