@@ -139,7 +139,6 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
               std::vector<std::uint8_t>& strong) {
   const int n = A.rows, nnz = A.nnz();
   mu.assign(nnz, 0.0);
-  strong.assign(nnz, 0);
   std::vector<double> Dis(static_cast<std::size_t>(B * B) * n);
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i) {
@@ -165,6 +164,13 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
       if (kt >= 0) mu[kt] = m;
     }
   }
+  strong_flags<B>(A, mu, theta, strong);
+}
+
+template <int B>
+void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong) {
+  const int n = A.rows;
+  strong.assign(A.nnz(), 0);
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i) {
     double top = 0;
@@ -531,6 +537,7 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
 
 #define WEFT_SA_INSTANTIATE(B)                                                                                        \
   template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
+  template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&);   \
   template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
                                 std::vector<std::uint8_t>&);                                                          \
   template Aggregates aggregate<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&,                            \
@@ -574,6 +581,7 @@ struct Level {
 
   // Coarsening structure (kept under reuse = aggregates).
   std::vector<std::uint8_t> strong, special;
+  std::vector<std::uint8_t> filter;  // filter_scale < 1: the smoothing filter's strong flags
   sa::Aggregates aggs;
   int num_special = 0;
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf holds them
@@ -602,7 +610,7 @@ struct Level {
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(special) + vb(aggs.node_agg) +
+    std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
                     P.memory_bytes() + vb(Pf) + PT.memory_bytes() + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
@@ -634,6 +642,7 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.coarse_size >= 1, "coarse_size", p.coarse_size, ">= 1")
       .require(p.max_levels >= 1 && p.max_levels <= 30, "max_levels", p.max_levels, "in [1, 30]")
       .require(p.stall_ratio > 0 && p.stall_ratio <= 1, "stall_ratio", p.stall_ratio, "in (0, 1]")
+      .require(p.filter_scale > 0 && p.filter_scale <= 1, "filter_scale", p.filter_scale, "in (0, 1]")
       .require(p.dense_limit >= 1, "dense_limit", p.dense_limit, ">= 1")
       .require(p.qr_tolerance > 0 && p.qr_tolerance < 1, "qr_tolerance", p.qr_tolerance, "in (0, 1)")
       .require(p.lanczos_steps >= 1 && p.lanczos_steps <= 100, "lanczos_steps", p.lanczos_steps, "in [1, 100]")
@@ -749,10 +758,22 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
         ScopedTimer t(T.aggregation);
         L.aggs = sa::aggregate<B>(A, L.strong, L.special);
       }
+      if (prm.filtered_smoothing && prm.filter_scale < 1) {
+        // The smoothing filter's own, lower threshold; blocks touching a special node stay
+        // weak as in L.strong.
+        ScopedTimer t(T.strength);
+        sa::strong_flags<B>(A, mu, prm.filter_scale * prm.theta, L.filter);
+        for (int i = 0; i < n; ++i)
+          for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+            if (L.special[i] || L.special[A.col[k]]) L.filter[k] = 0;
+      } else {
+        L.filter = {};
+      }
     }
     if (last || L.aggs.count == 0 || L.aggs.count > prm.stall_ratio * n) {
       ScopedTimer t(T.other);
       L.strong = {};
+      L.filter = {};
       L.special = {};
       L.aggs = {};
       L.P.clear();
@@ -783,7 +804,8 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   L.dummy = tent.dummy;
   L.deficient = tent.deficient;
   st.deficient = tent.deficient;
-  const std::vector<std::uint8_t>* strong = prm.filtered_smoothing ? &L.strong : nullptr;
+  const std::vector<std::uint8_t>* strong =
+      !prm.filtered_smoothing ? nullptr : (L.filter.empty() ? &L.strong : &L.filter);
   const double omega = 4.0 / (3.0 * L.lambda);
   L.implicit = prm.implicit_prolongator && index == 0;
   const int degree = index < prm.prolongator_degree_levels ? prm.prolongator_degree : 1;
@@ -817,7 +839,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     L.strong_bits.assign(strong ? (static_cast<std::size_t>(A.nnz()) + 63) / 64 : 0, 0);
     if (strong)
       for (int k = 0; k < A.nnz(); ++k)
-        if (L.strong[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
+        if ((*strong)[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
   } else {
     L.Qf = {};
     L.agg_ptr = {};
@@ -873,6 +895,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
     // it back now (only `aggregates` refreshes values on the kept structure).
     std::vector<std::uint8_t>().swap(L.strong);
+    std::vector<std::uint8_t>().swap(L.filter);
     std::vector<std::uint8_t>().swap(L.special);
     if (!L.implicit) std::vector<int>().swap(L.aggs.node_agg);
     std::vector<std::uint8_t>().swap(L.dummy);

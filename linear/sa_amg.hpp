@@ -112,6 +112,10 @@ namespace sa {
 template <int B>
 void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
               std::vector<std::uint8_t>& strong);
+/// The symmetrised strong flags of `strength` from given mu: strong[k] = 1 iff mu_ij > theta
+/// max_k mu_ik or mu_ji > theta max_k mu_jk (i != j).
+template <int B>
+void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong);
 /// mu of one scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 under `measure` (B = 3 or 6).
 template <int B>
 double measure(const Eigen::Matrix<double, B, B>& M, SocMeasure measure);
@@ -192,6 +196,11 @@ class SaAmg {
     SocMeasure strength = SocMeasure::spectral;
     double diagonal_dominance = 1e-2;  ///< tau_dd: special if sum_j mu_ij < tau_dd
     bool filtered_smoothing = true;    ///< smooth P with A_f (weak blocks lumped into the diagonal)
+    /// The smoothing filter's threshold relative to theta: A_f keeps the blocks with mu_ij >
+    /// filter_scale theta max_k mu_ik, while aggregation uses theta. 1: the same flags (the
+    /// thesis). Below 1, P also sees the weaker couplings (the hinges of irregular meshes) at
+    /// a wider pattern.
+    double filter_scale = 1.0;
     int coarse_size = 50;             ///< stop coarsening at <= this many nodes
     int max_levels = 10;
     double stall_ratio = 0.8;          ///< stop when n_{l+1} > stall_ratio n_l
@@ -245,6 +254,8 @@ class SaAmg {
               {Unit::none, Range::ge(0), "a node with sum_j mu_ij below this is special (relaxation only)"});
       v.field("filtered_smoothing", filtered_smoothing,
               {Unit::none, Range::any(), "smooth the prolongator with the filtered matrix (weak blocks lumped into the diagonal)"});
+      v.field("filter_scale", filter_scale,
+              {Unit::none, Range::open_closed(0, 1), "threshold of the smoothing filter relative to theta (1: the aggregation's strong flags)"});
       v.field("coarse_size", coarse_size, {Unit::none, Range::ge(1), "stop coarsening at this many nodes or fewer"});
       v.field("max_levels", max_levels, {Unit::none, Range::closed(1, 30), "most levels of the hierarchy"});
       v.field("stall_ratio", stall_ratio, {Unit::none, Range::open_closed(0, 1), "stop when a level keeps more than this fraction of the nodes"});

@@ -454,6 +454,51 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 2, .implicit_prolongator = true}), ConfigError);
 }
 
+TEST_CASE("sa: a lower filter_scale widens the prolongator towards unfiltered smoothing and keeps the V-cycle SPD") {
+  // filter_scale only moves the smoothing filter's threshold: the aggregates stay those of
+  // theta, P widens as the threshold falls, and with every coupling kept (no special node on
+  // the unpinned sheet) P is the unfiltered smoother's.
+  Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  const int N = p.Ahat.rows();
+  SaAmg::Params base = small_coarse(8);
+  base.single_prolongator = false;
+  long long previous = 0, thesis_nnz = 0;
+  int aggregates = -1;
+  for (const double scale : {1.0, 0.5, 0.25, 0.1}) {
+    CAPTURE(scale);
+    SaAmg::Params prm = base;
+    prm.filter_scale = scale;
+    SaAmg sa(prm);
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(sa.levels() >= 3);
+    const SaLevelStats& fine = sa.stats().levels[0];
+    if (aggregates < 0) aggregates = fine.aggregates;
+    CHECK(fine.aggregates == aggregates);
+    CHECK(fine.nnz_p >= previous);
+    if (scale == 1.0) thesis_nnz = fine.nnz_p;
+    if (scale == 0.1) CHECK(fine.nnz_p > thesis_nnz);  // not vacuous: the thesis' filter did drop couplings
+    previous = fine.nnz_p;
+    checked_spd_map(sa, N);
+  }
+
+  Prefiltered free = prefiltered_cloth(13, Tessellation::irregular, Pins::none);
+  SolveContext fctx{&free.sys.pins, &free.sys.x};
+  SaAmg::Params all = base, unfiltered = base, thesis = base;
+  all.filter_scale = 1e-12;
+  unfiltered.filtered_smoothing = false;
+  SaAmg a(all), u(unfiltered), t(thesis);
+  REQUIRE(a.setup(free.Ahat, fctx) == Status::success);
+  REQUIRE(u.setup(free.Ahat, fctx) == Status::success);
+  REQUIRE(t.setup(free.Ahat, fctx) == Status::success);
+  REQUIRE(a.stats().levels[0].special == 0);
+  const Eigen::MatrixXd Pa = a.prolongator(0), Pu = u.prolongator(0), Pt = t.prolongator(0);
+  CHECK((Pa - Pu).norm() <= 1e-12 * Pu.norm());
+  CHECK((Pt - Pu).norm() > 1e-3 * Pu.norm());  // the thesis' filter differs from no filter here
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.filter_scale = 0}), ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.filter_scale = 1.5}), ConfigError);
+}
+
 TEST_CASE("sa: coarse operators are symmetric and positive definite with block size 6") {
   Prefiltered p = prefiltered_cloth(25, Tessellation::irregular, Pins::two_sides);
   // Both storages of A_c: double, and the default single precision (formed in double, rounded once).
