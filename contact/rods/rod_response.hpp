@@ -51,6 +51,7 @@
 #include <vector>
 
 #include "contact/coulomb.hpp"
+#include "contact/rods/anderson.hpp"
 #include "contact/detection/distance.hpp"
 #include "contact/rods/rod_detection.hpp"
 #include "contact/rods/rod_group_solver.hpp"
@@ -102,6 +103,7 @@ struct RodContactParams {
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the multipliers that stops them (friction only with exact projections)
   double sp_inner = 0.1;       ///< staggered projections: a projection's sweeps stop when one changes the multipliers by less than sp_inner x its first did (0: exact projections)
+  int sp_anderson = 0;         ///< staggered projections: Anderson acceleration of the alternation over this many past alternations (0: plain)
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
   double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
@@ -138,6 +140,10 @@ struct RodContactParams {
             {Unit::none, Range::closed(0, 1),
              "staggered projections: inexact projections - each projection's Gauss-Seidel stops when a sweep changes the multipliers by "
              "less than sp_inner times its first sweep did (0: every projection solved to 1e-3 contact_tol)"});
+    v.field("sp_anderson", sp_anderson,
+            {Unit::none, Range::closed(0, 50),
+             "staggered projections: Anderson acceleration of the alternation from this many past alternations; a mix is "
+             "projected onto the friction cones and kept only when it lowers the Coulomb residual (0: the plain alternation)"});
     v.field("redetections", redetections, {Unit::none, Range::closed(0, 100), "detections on the corrected trajectory that may add contacts before the step fails"});
     v.field("overlap_tol", overlap_tol,
             {Unit::none, Range::closed(0, 1),
@@ -446,6 +452,42 @@ class RodResponse {
     return cut;
   }
 
+  /// Anderson step of the staggered alternation: `before` holds the multipliers the
+  /// alternation started from, the contacts hold its result G and xs is consistent with
+  /// them. The mix is projected onto each contact's cone (lambda_n >= 0, |lambda_t| <=
+  /// mu lambda_n) and kept, with xs moved along, only when it lowers the group's Coulomb
+  /// residual `plain`; else the history is reset. Returns the residual of what is kept.
+  double accelerate(Anderson& anderson, const std::vector<int>& ids, const std::vector<Eigen::Vector3d>& before,
+                    GroupDisplacements& xs, Eigen::VectorXd& x_k, Eigen::VectorXd& g_k, Eigen::VectorXd& mixed, double plain) {
+    const auto n = static_cast<Eigen::Index>(ids.size());
+    x_k.resize(3 * n);
+    g_k.resize(3 * n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      x_k.segment<3>(3 * i) = before[i];
+      g_k.segment<3>(3 * i) = contacts_[ids[i]].lambda;
+    }
+    if (!anderson.mix(x_k, g_k, mixed)) return plain;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      RodContactRows& k = contacts_[ids[i]];
+      Eigen::Vector3d l = mixed.segment<3>(3 * i);
+      l[0] = std::max(l[0], 0.0);
+      const double t = l.tail<2>().norm(), radius = k.mu * l[0];
+      if (t > radius) l.tail<2>() *= t > 0 ? radius / t : 0.0;
+      add_response(k, l - k.lambda, xs);
+      k.lambda = l;
+    }
+    const double residual = contact_error(contacts_, ids, xs);
+    if (residual < plain) return residual;
+    for (Eigen::Index i = 0; i < n; ++i) {  // back to the plain iterate
+      RodContactRows& k = contacts_[ids[i]];
+      const Eigen::Vector3d g = g_k.segment<3>(3 * i);
+      add_response(k, g - k.lambda, xs);
+      k.lambda = g;
+    }
+    anderson.reset();
+    return plain;
+  }
+
   template <class System>
   GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
     GroupStats st;
@@ -511,6 +553,8 @@ class RodResponse {
         // friction multipliers still while the normal ones are unsolved (mu = 0), so there
         // both must stop changing.
         std::vector<Eigen::Vector3d> before(ids.size());
+        Anderson anderson(prm_.sp_anderson);
+        Eigen::VectorXd x_k, g_k, mixed;
         for (int sp = 0; sp < prm_.sp_max; ++sp) {
           ++st.sp_iterations;
           for (size_t i = 0; i < ids.size(); ++i) before[i] = contacts_[ids[i]].lambda;
@@ -535,6 +579,7 @@ class RodResponse {
                              (prm_.sp_inner == 0 || alpha_change <= prm_.sp_tol * std::max(alpha_norm, 1e-300));
           st.residual = contact_error(contacts_, ids, xs);
           if (still || st.residual <= prm_.contact_tol) break;
+          if (anderson.depth() > 0) st.residual = accelerate(anderson, ids, before, xs, x_k, g_k, mixed, st.residual);
         }
       } else {
         int sweeps = 0;

@@ -7,6 +7,8 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/QR>
 
 #include <chrono>
 #include <cmath>
@@ -19,6 +21,7 @@
 #endif
 
 #include "contact/coulomb.hpp"
+#include "contact/rods/anderson.hpp"
 #include "contact/rods/rod_group_solver.hpp"
 #include "policies/registry.hpp"
 #include "policies/rod_presets.hpp"
@@ -379,21 +382,24 @@ TEST_SUITE("rods") {
       sp["contact"]["gs_max"] = 100000;
       sp["contact"]["sp_max"] = 10000;
       sp["contact"]["sp_tol"] = 1e-13;
-      Json sp_exact = sp;
+      Json sp_exact = sp, sp_anderson = sp;
       sp_exact["contact"]["sp_inner"] = 0.0;
-      std::unique_ptr<AnySimulator> staggered[2] = {make_simulator(rod_scene("rods_staggered", stack(), 0.002, 1.0, sp_exact)),
-                                                 make_simulator(rod_scene("rods_staggered", stack(), 0.002, 1.0, sp))};
-      long sweeps[2] = {0, 0};
+      sp_anderson["contact"]["sp_anderson"] = 5;
+      // exact projections, inexact ones (the default), inexact ones with Anderson acceleration
+      std::unique_ptr<AnySimulator> staggered[3] = {make_simulator(rod_scene("rods_staggered", stack(), 0.002, 1.0, sp_exact)),
+                                                    make_simulator(rod_scene("rods_staggered", stack(), 0.002, 1.0, sp)),
+                                                    make_simulator(rod_scene("rods_staggered", stack(), 0.002, 1.0, sp_anderson))};
+      long sweeps[3] = {0, 0, 0}, alternations[3] = {0, 0, 0};
       int pressed = 0;
       for (int i = 0; i < 30 && pressed == 0; ++i) {  // up to the first steps with contacts
         CAPTURE(i);
         const StepReport a = adonis->step();
         REQUIRE_MESSAGE(a.ok(), a.message);
-        for (int inexact = 0; inexact < 2; ++inexact) {
+        for (int inexact = 0; inexact < 3; ++inexact) {
           CAPTURE(inexact);
           const StepReport s = staggered[inexact]->step();
           REQUIRE_MESSAGE(s.ok(), s.message);
-          MESSAGE("mu " << mu << " step " << i << std::string(inexact ? " inexact" : " exact") << ": staggered residual " << s.contact.gs_residual << " ("
+          MESSAGE("mu " << mu << " step " << i << std::string(inexact == 2 ? " Anderson" : inexact ? " inexact" : " exact") << ": staggered residual " << s.contact.gs_residual << " ("
                         << s.contact.gs_sweeps << " sweeps, " << s.contact.sp_alternations << " alternations), ADONIS " << a.contact.gs_residual
                         << " (" << a.contact.contact_newton << " Newton steps)");
           REQUIRE(a.contact.contacts == s.contact.contacts);
@@ -401,6 +407,7 @@ TEST_SUITE("rods") {
           CHECK(s.contact.gs_residual <= 1e-12);
           CHECK(s.contact.sp_alternations >= 1);
           sweeps[inexact] += s.contact.gs_sweeps;
+          alternations[inexact] += s.contact.sp_alternations;
           const auto& A = as<RodsAdonis>(*adonis);
           const auto& S = as<RodsStaggered>(*staggered[inexact]);
           const Eigen::VectorXd da = displacements(A), ds = displacements(S);
@@ -413,10 +420,50 @@ TEST_SUITE("rods") {
         }
       }
       CHECK(pressed > 0);
-      MESSAGE("mu " << mu << ": sweeps exact " << sweeps[0] << ", inexact " << sweeps[1]);
+      MESSAGE("mu " << mu << ": sweeps exact " << sweeps[0] << ", inexact " << sweeps[1] << ", Anderson " << sweeps[2] << "; alternations "
+                    << alternations[0] << ", " << alternations[1] << ", " << alternations[2]);
       CHECK(sweeps[1] <= sweeps[0]);
       if (mu > 0) CHECK(sweeps[1] < sweeps[0]);  // without friction one alternation is the whole solve
+      CHECK(alternations[2] <= alternations[1]);
     }
+  }
+
+  TEST_CASE("rod contact solver: Anderson acceleration of a slow linear fixed-point iteration") {
+    // G(x) = M x + c with eigenvalues of M in [0.5, 0.98] (a slowly contracting map like
+    // the staggered alternation on a big group): depth 0 is the plain iteration, depth 5
+    // reaches the fixed point to 1e-10 in a small fraction of its iterations.
+    const int n = 60;
+    Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(Eigen::MatrixXd::Random(n, n)).householderQ();
+    const Eigen::VectorXd eig = Eigen::VectorXd::LinSpaced(n, 0.5, 0.98);
+    const Eigen::MatrixXd M = Q * eig.asDiagonal() * Q.transpose();
+    const Eigen::VectorXd c = Eigen::VectorXd::LinSpaced(n, -1, 2);
+    const Eigen::VectorXd fixed = (Eigen::MatrixXd::Identity(n, n) - M).lu().solve(c);
+    auto iterations = [&](int depth) {
+      contact::Anderson aa(depth);
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(n), next;
+      for (int k = 1; k <= 5000; ++k) {
+        const Eigen::VectorXd g = M * x + c;
+        const bool mixed = aa.mix(x, g, next);
+        if (depth == 0) CHECK_FALSE(mixed);
+        x = next;
+        if ((x - fixed).norm() <= 1e-10 * fixed.norm()) return k;
+      }
+      return 5001;
+    };
+    const int plain = iterations(0), accelerated = iterations(5);
+    MESSAGE("plain " << plain << " iterations, Anderson(5) " << accelerated);
+    CHECK(plain > 900);  // 0.98^k <= 1e-10 needs ~1140
+    CHECK(plain <= 5000);
+    CHECK(accelerated < plain / 5);
+    // reset forgets the history: the next mix is the plain image
+    contact::Anderson aa(3);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(n), out;
+    aa.mix(x, M * x + c, out);
+    x = out;
+    CHECK(aa.mix(x, M * x + c, out));
+    aa.reset();
+    CHECK_FALSE(aa.mix(out, M * out + c, x));
+    CHECK(aa.history() == 0);
   }
 
   TEST_CASE("rod contact solver: V-13 converged results do not depend on the contact order") {
