@@ -51,8 +51,8 @@
 #include <vector>
 
 #include "contact/coulomb.hpp"
-#include "contact/rods/anderson.hpp"
 #include "contact/detection/distance.hpp"
+#include "contact/rods/anderson.hpp"
 #include "contact/rods/rod_detection.hpp"
 #include "contact/rods/rod_group_solver.hpp"
 #include "framework/concepts.hpp"
