@@ -383,7 +383,6 @@ int bench_linear(const BenchLinearOptions& opt) {
       if (!(e.key == "direct" && has("cholmod"))) chosen.push_back(e);  // CHOLMOD replaces the slower simplicial LDL^T
   } else {
     for (const auto& key : opt.solvers) {
-      auto it = std::find_if(all.begin(), all.end(), [&](const SolverEntry& e) { return e.key == key; });
       if (key.find(':') != std::string::npos) {  // sa_ppcg with its own settings
         try {
           if (std::none_of(chosen.begin(), chosen.end(), [&](const SolverEntry& e) { return e.key == key; }))
@@ -391,7 +390,10 @@ int bench_linear(const BenchLinearOptions& opt) {
         } catch (const ConfigError& e) {
           errors.push_back(fmt::format("--solvers: {}", e.what()));
         }
-      } else if (it == all.end()) {
+        continue;
+      }
+      auto it = std::find_if(all.begin(), all.end(), [&](const SolverEntry& e) { return e.key == key; });
+      if (it == all.end()) {
         std::string avail;
         for (const auto& e : all) avail += (avail.empty() ? "" : ", ") + e.key;
         errors.push_back(fmt::format("--solvers: '{}' is not available in this build (available: {})", key, avail));

@@ -1,5 +1,7 @@
 // The solvers of `weft bench linear`: a template adapter from any `LinearSolver` to the
 // virtual `AnySolver`, and the list of the solvers this build provides (report order).
+#include <boost/algorithm/string/split.hpp>
+
 #include <type_traits>
 
 #include "apps/bench_linear.hpp"
@@ -126,12 +128,7 @@ SolverEntry sa_ppcg_entry(const SolverSettings& s, std::string key, std::string 
 
 SolverEntry sa_ppcg_with(const SolverSettings& s, const std::string& token) {
   std::vector<std::string> parts;
-  for (size_t pos = 0;;) {
-    const size_t c = token.find(':', pos);
-    parts.push_back(token.substr(pos, c == std::string::npos ? std::string::npos : c - pos));
-    if (c == std::string::npos) break;
-    pos = c + 1;
-  }
+  boost::algorithm::split(parts, token, [](char c) { return c == ':'; });
   if (parts.front() != "sa_ppcg")
     throw ConfigError("invalid --solvers entry:", {fmt::format("'{}': only sa_ppcg takes settings (sa_ppcg:KEY=VALUE[:KEY=VALUE...])", token)});
   const std::vector<std::string> own(parts.begin() + 1, parts.end());

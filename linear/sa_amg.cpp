@@ -191,6 +191,16 @@ void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double 
     }
 }
 
+/// Clears every flag of a block that touches a special node.
+template <int B>
+void weaken_special(const BsrView<B, B>& A, const std::vector<std::uint8_t>& special, std::vector<std::uint8_t>& flags) {
+  const int n = A.rows;
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
+      if (flags[k] && (special[i] || special[A.col[k]])) flags[k] = 0;
+}
+
 template <int B>
 int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double tau_dd, std::vector<std::uint8_t>& strong,
                   std::vector<std::uint8_t>& special) {
@@ -210,10 +220,7 @@ int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double 
   // neighbour becomes special too (else pass 1 would make it a singleton aggregate).
   for (bool changed = true; changed;) {
     changed = false;
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-    for (int i = 0; i < n; ++i)
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-        if (strong[k] && (special[i] || special[A.col[k]])) strong[k] = 0;
+    weaken_special<B>(A, special, strong);
     for (int i = 0; i < n; ++i) {
       if (special[i]) continue;
       bool any = false;
@@ -763,9 +770,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
         // weak as in L.strong.
         ScopedTimer t(T.strength);
         sa::strong_flags<B>(A, mu, prm.filter_scale * prm.theta, L.filter);
-        for (int i = 0; i < n; ++i)
-          for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-            if (L.special[i] || L.special[A.col[k]]) L.filter[k] = 0;
+        sa::weaken_special<B>(A, L.special, L.filter);
       } else {
         L.filter = {};
       }

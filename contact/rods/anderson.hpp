@@ -27,7 +27,7 @@ class Anderson {
   int history() const { return used_; }
   /// Forget the history (e.g. after a rejected mix): the next `mix` returns g.
   void reset() {
-    used_ = 0;
+    used_ = next_ = 0;
     has_last_ = false;
   }
 
@@ -42,21 +42,15 @@ class Anderson {
       if (dF_.rows() != n || dF_.cols() != depth_) {
         dF_.setZero(n, depth_);
         dG_.setZero(n, depth_);
-        used_ = 0;
+        used_ = next_ = 0;
       }
-      // Oldest column out when full: shift left, newest in the last column in use.
-      if (used_ == depth_) {
-        for (int c = 1; c < depth_; ++c) {
-          dF_.col(c - 1) = dF_.col(c);
-          dG_.col(c - 1) = dG_.col(c);
-        }
-        --used_;
-      }
-      dF_.col(used_) = f - last_f_;
-      dG_.col(used_) = g - last_g_;
-      ++used_;
+      // A ring of columns: the newest replaces the oldest (gamma does not depend on the order).
+      dF_.col(next_) = f - last_f_;
+      dG_.col(next_) = g - last_g_;
+      next_ = (next_ + 1) % depth_;
+      used_ = std::min(used_ + 1, depth_);
     } else {
-      used_ = 0;
+      used_ = next_ = 0;
     }
     last_f_ = f;
     last_g_ = g;
@@ -75,6 +69,7 @@ class Anderson {
  private:
   int depth_ = 0;
   int used_ = 0;
+  int next_ = 0;  // column the next difference goes to
   bool has_last_ = false;
   Eigen::MatrixXd dF_, dG_;
   Eigen::VectorXd last_f_, last_g_;
