@@ -350,15 +350,22 @@ void residual(const BsrView<R, C>& A, const double* f, const double* x, double* 
     Eigen::Map<Eigen::Matrix<double, R, 1>>(r + R * i) = Eigen::Map<const Eigen::Matrix<double, R, 1>>(f + R * i) - row_product(A, i, x);
 }
 
-/// y += A x for a rectangular pattern (no one-triangle storage, no filter) whose values are
-/// `val` (T: double or float; products in double). Parallel over block rows.
+/// y += A diag(s) x for a rectangular pattern (no one-triangle storage, no filter) whose
+/// values are `val` (T: double, float or int16; products in double), with one scale per
+/// column (`col_scale`, C * cols entries) or none (nullptr). Parallel over block rows.
 template <int R, int C, class T>
-void multiply_add(const BsrView<R, C>& A, const T* val, const double* x, double* y) {
+void multiply_add(const BsrView<R, C>& A, const T* val, const double* x, double* y, const double* col_scale = nullptr) {
+  using VecC = Eigen::Matrix<double, C, 1>;
 #pragma omp parallel for schedule(static) if (A.rows > parallel_rows)
   for (int i = 0; i < A.rows; ++i) {
     Eigen::Matrix<double, R, 1> acc = Eigen::Matrix<double, R, 1>::Zero();
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-      acc.noalias() += value_block<R, C>(val, k) * Eigen::Map<const Eigen::Matrix<double, C, 1>>(x + C * A.col[k]);
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const Eigen::Map<const VecC> xj(x + C * A.col[k]);
+      if (col_scale)
+        acc.noalias() += value_block<R, C>(val, k) * xj.cwiseProduct(Eigen::Map<const VecC>(col_scale + C * A.col[k]));
+      else
+        acc.noalias() += value_block<R, C>(val, k) * xj;
+    }
     Eigen::Map<Eigen::Matrix<double, R, 1>>(y + R * i) += acc;
   }
 }
@@ -388,16 +395,20 @@ struct TransposeIndex {
   std::size_t memory_bytes() const { return (ptr.capacity() + row.capacity() + blk.capacity()) * sizeof(int); }
 };
 
-/// y = A^T x (y sized C * cols) through the transpose index T of A, for a rectangular pattern
-/// whose values are `val` (double or float, as `multiply_add`). Parallel over columns.
+/// y = (A diag(s))^T x (y sized C * cols) through the transpose index T of A, for a
+/// rectangular pattern whose values are `val` (as `multiply_add`), with one scale per column
+/// or none (nullptr). Parallel over columns.
 template <int R, int C, class V>
-void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const V* val, const double* x, double* y) {
+void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const V* val, const double* x, double* y,
+                    const double* col_scale = nullptr) {
+  using VecC = Eigen::Matrix<double, C, 1>;
 #pragma omp parallel for schedule(static) if (A.cols > parallel_rows)
   for (int j = 0; j < A.cols; ++j) {
-    Eigen::Matrix<double, C, 1> acc = Eigen::Matrix<double, C, 1>::Zero();
+    VecC acc = VecC::Zero();
     for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
       acc.noalias() += value_block<R, C>(val, T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
-    Eigen::Map<Eigen::Matrix<double, C, 1>>(y + C * j) = acc;
+    if (col_scale) acc = acc.cwiseProduct(Eigen::Map<const VecC>(col_scale + C * j));
+    Eigen::Map<VecC>(y + C * j) = acc;
   }
 }
 

@@ -58,6 +58,7 @@ double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 }
 
 // r = S (b - A x); A read through its view (prefiltered on the fly when the view has filters).
+// b may alias r (each row reads its own b_i only); x must not.
 void residual(const BsrView<3, 3>& A, const Eigen::VectorXd& b, const Eigen::VectorXd& x, const VertexFilters* S,
               Eigen::VectorXd& r) {
   const int n = A.rows;
@@ -111,10 +112,13 @@ double update(double alpha, const Eigen::VectorXd& p, const Eigen::VectorXd& q, 
   return rz;
 }
 
-// z = B r; returns r^T z.
-double precondition(const PrecondView& B, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+// z = B r; returns r^T z. `idle` is a vector B may use as work (its contents are lost).
+double precondition(const PrecondView& B, const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& idle) {
   if (!B.block_inverse) {
-    B.apply(B.self, r, z);
+    if (B.apply_work)
+      B.apply_work(B.self, r, z, idle);
+    else
+      B.apply(B.self, r, z);
     return dot(r, z);
   }
   const int n = static_cast<int>(r.size() / 3);
@@ -162,8 +166,8 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
     rep.convergence_rate = N > 0 && std::isfinite(last) ? std::pow(last, 1.0 / N) : 0.0;
   };
 
-  residual(A, b, x, S, w.r);
-  double delta = precondition(B, w.r, w.z);
+  residual(A, b, x, S, w.r);  // b may be w.r itself: row i reads b_i before it writes r_i
+  double delta = precondition(B, w.r, w.z, w.q);  // q is idle until the first A p
   if (!std::isfinite(delta)) {
     rep.residual_history.push_back(std::nan(""));
     return stop(Status::numerical_issue,
@@ -200,7 +204,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
     }
     const double alpha = delta / pq;
     double delta_new = update(alpha, w.p, w.q, x, w.r, B.block_inverse, w.z);
-    if (!B.block_inverse) delta_new = precondition(B, w.r, w.z);
+    if (!B.block_inverse) delta_new = precondition(B, w.r, w.z, w.q);  // q = A p is used up
     rep.iterations = it;
     if (!std::isfinite(delta_new)) {
       rep.residual_history.push_back(std::nan(""));

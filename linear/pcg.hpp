@@ -125,6 +125,9 @@ class VertexFilters {
 struct PrecondView {
   const void* self = nullptr;
   void (*apply)(const void* self, const Eigen::VectorXd& r, Eigen::VectorXd& z) = nullptr;
+  /// Non-null when B can borrow a work vector of r's size (`apply(r, z, work)`): the CG
+  /// lends its A p vector, idle while B is applied, so B need not own one.
+  void (*apply_work)(const void* self, const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& work) = nullptr;
   /// Non-null: B is block diagonal with these 3x3 row-major blocks; the core then fuses
   /// z = B r and r^T z into the vector update.
   const double* block_inverse = nullptr;
@@ -144,7 +147,8 @@ struct KrylovOptions {
 
 /// PCG (S == nullptr) or BW98 modified PCG (S given; x must already be feasible) on
 /// A x = b from the x given; with filters F (PPCG on the fly), on Ahat x = b where Ahat =
-/// S A S + Sigma (I - S) is applied from A and F without being stored. Fills status,
+/// S A S + Sigma (I - S) is applied from A and F without being stored. b may be w.r itself
+/// (PPCG writes its prefiltered right-hand side there). Fills status,
 /// iterations, residual_history, convergence_rate, indefinite and message of `rep`. No
 /// allocation inside the iteration loop.
 void pcg(const BlockCsr& A, const Eigen::VectorXd& b, Eigen::VectorXd& x, const PrecondView& B,

@@ -57,6 +57,10 @@ PrecondView PreconditionerSlot<P>::view() const {
   PrecondView v;
   v.self = &p_;
   v.apply = [](const void* self, const Eigen::VectorXd& r, Eigen::VectorXd& z) { static_cast<const P*>(self)->apply(r, z); };
+  if constexpr (requires(const Eigen::VectorXd& r, Eigen::VectorXd& z) { p_.apply(r, z, z); })
+    v.apply_work = [](const void* self, const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& work) {
+      static_cast<const P*>(self)->apply(r, z, work);
+    };
   if constexpr (requires { { p_.inverse_blocks().data() } -> std::convertible_to<const double*>; })
     v.block_inverse = p_.inverse_blocks().data();
   return v;
@@ -223,7 +227,10 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   rep.solves = 1;
   rep.setup_seconds = setup_seconds;
   const ConstraintSet* c = constraints();
-  const Eigen::VectorXd& chat = pre_.rhs(b);  // S (b - A z), or b itself
+  // chat = S (b - A z) goes straight into the residual vector, where the CG starts from it
+  // (r = chat - Ahat y0 in place): no vector of its own.
+  work_.resize(b.size());
+  const Eigen::VectorXd& chat = pre_.active() ? pre_.rhs(b, work_.r) : b;
   {
     ScopedTimer t(rep.solve_seconds);
     // y0 = 0 (thesis fidelity) or, warm, S (x_in - z). y is iterated in x's storage.
@@ -235,7 +242,6 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     } else {
       x.setZero(b.size());
     }
-    work_.resize(b.size());
     detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep, filter_);
     pre_.finish(x);  // x = z + S y: constraints to round-off
   }

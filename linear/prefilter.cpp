@@ -127,10 +127,21 @@ const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b) {
   return chat_;
 }
 
+const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b, Eigen::VectorXd& out) {
+  if (!active()) {
+    out = b;
+    return out;
+  }
+  WEFT_ASSERT(A_ != nullptr, "{}", "PrefilteredSystem::rhs before matrix");
+  ScopedTimer t(seconds_);
+  prefilter_rhs(*A_, *ctx_.constraints, b, out);
+  return out;
+}
+
 void PrefilteredSystem::finish(Eigen::VectorXd& y) const {
   if (!active()) return;
-  const Eigen::VectorXd y0 = y;
-  unfilter_solution(*ctx_.constraints, y0, y);
+  ctx_.constraints->filter(y);  // x = S y + z, in place
+  y += ctx_.constraints->target();
 }
 
 double PrefilteredSystem::take_seconds() {

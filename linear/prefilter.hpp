@@ -67,7 +67,9 @@ class PrefilteredSystem {
   const BlockCsr& matrix(const BlockCsr& A);
   /// The right-hand side to solve with: b itself, or chat.
   const Eigen::VectorXd& rhs(const Eigen::VectorXd& b);
-  /// In place: y -> x = z + S y (nothing without constraints).
+  /// chat written to `out` (b itself without constraints); returns out. Nothing is kept.
+  const Eigen::VectorXd& rhs(const Eigen::VectorXd& b, Eigen::VectorXd& out);
+  /// In place: y -> x = z + S y (nothing without constraints; no copy of y).
   void finish(Eigen::VectorXd& y) const;
   /// The matrix handed to the last `matrix` or `filter` call (the unfiltered A).
   const BlockCsr* original() const { return A_; }

@@ -591,8 +591,10 @@ struct Level {
   std::vector<std::uint8_t> filter;  // filter_scale < 1: the smoothing filter's strong flags
   sa::Aggregates aggs;
   int num_special = 0;
-  BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf holds them
-  std::vector<float> Pf;         // single_prolongator: P's values, B x 6 row-major blocks
+  BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
+  std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
+  std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
+  std::vector<double> Pscale;    // one scale per coarse dof
   TransposeIndex PT;
   std::vector<std::uint8_t> dummy;  // per coarse dof
   int deficient = 0;
@@ -612,13 +614,16 @@ struct Level {
   Eigen::LDLT<Eigen::MatrixXd> ldlt;
 
   // Work vectors (apply is const; one apply at a time).
+  // f, x: the level's right-hand side and solution (coarse levels); d: the smoother's
+  // correction, also the residual restricted to the next level; res: the residual when the
+  // implicit P uses d itself (level 0 only).
   mutable Eigen::VectorXd f, x, res, d;
   mutable Eigen::VectorXd wr, wx;  // extra coarse cycles (W-cycle levels)
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
-                    P.memory_bytes() + vb(Pf) + PT.memory_bytes() + vb(dummy);
+                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + PT.memory_bytes() + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -704,6 +709,39 @@ void make_coarsest(Level<B>& L, const SaAmg::Params& prm) {
   if (L.ldlt.info() == Eigen::Success) L.direct = 2;
 }
 
+/// Rounds P's values to the storage the cycle will read them from (ValueStorage); fixed16
+/// also sets the per-column scales L.Pscale. Applied before the Galerkin product.
+template <int B>
+void round_to_storage(Level<B>& L, ValueStorage storage) {
+  std::vector<double>& v = L.P.values();
+  if (storage != ValueStorage::fixed16) L.Pscale = {};
+  if (storage == ValueStorage::single_precision) {
+    for (double& x : v) x = static_cast<double>(static_cast<float>(x));
+    return;
+  }
+  if (storage != ValueStorage::fixed16) return;
+  const int rows = L.P.rows();
+  const int* rp = L.P.row_ptr().data();
+  const int* col = L.P.col().data();
+  std::vector<double>& s = L.Pscale;
+  s.assign(static_cast<std::size_t>(6) * L.P.cols(), 0.0);
+  for (int i = 0; i < rows; ++i)  // the largest |entry| of each column
+    for (int k = rp[i]; k < rp[i + 1]; ++k)
+      for (int e = 0; e < B * 6; ++e) {
+        double& m = s[6 * col[k] + e % 6];
+        m = std::max(m, std::abs(v[static_cast<std::size_t>(B * 6) * k + e]));
+      }
+  for (double& m : s) m /= 32767.0;
+#pragma omp parallel for schedule(static) if (rows > parallel_rows)
+  for (int i = 0; i < rows; ++i)
+    for (int k = rp[i]; k < rp[i + 1]; ++k)
+      for (int e = 0; e < B * 6; ++e) {
+        double& x = v[static_cast<std::size_t>(B * 6) * k + e];
+        const double m = s[6 * col[k] + e % 6];
+        x = m > 0 ? std::nearbyint(x / m) * m : 0.0;
+      }
+}
+
 /// The smoother's block inverses in the precision the cycle reads (single_block_inverses):
 /// called once the setup of the level no longer needs them in double.
 template <int B>
@@ -783,6 +821,8 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       L.aggs = {};
       L.P.clear();
       L.Pf = {};
+      L.Pq = {};
+      L.Pscale = {};
       L.PT = {};
       make_coarsest(L, prm);
       keep_inverses(L, prm);
@@ -819,13 +859,13 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     // An implicit P is formed here for the Galerkin product and freed after it.
     // A wider P (degree > 1) is formed from the one-step pattern each time.
     if (!reuse || L.P.rows() == 0 || degree > 1) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
-    L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if single_prolongator freed it
+    L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
     if (!reuse || L.PT.ptr.size() <= 1 || degree > 1) L.PT.build(L.P.view());
-    if (prm.single_prolongator && !L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
-      for (double& v : L.P.values()) v = static_cast<double>(static_cast<float>(v));
+    if (!L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
+      round_to_storage(L, prm.prolongator_storage);
   }
   st.nnz_p = L.P.nnz();
   if (L.implicit) {
@@ -886,15 +926,30 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       C.own.store(s, D);
     }
   }
+  L.Pf = {};
+  L.Pq = {};
   if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
     L.P.clear();
     L.PT = {};
-    L.Pf = {};
-  } else if (prm.single_prolongator) {  // the cycle reads P from here on: keep it in float only
+    L.Pscale = {};
+  } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
     L.Pf.assign(L.P.values().begin(), L.P.values().end());
     std::vector<double>().swap(L.P.values());
-  } else {
-    L.Pf = {};
+  } else if (prm.prolongator_storage == ValueStorage::fixed16) {
+    const std::vector<double>& v = L.P.values();
+    L.Pq.resize(v.size());
+    const int rows = L.P.rows();
+    const int* rp = L.P.row_ptr().data();
+    const int* col = L.P.col().data();
+#pragma omp parallel for schedule(static) if (rows > parallel_rows)
+    for (int i = 0; i < rows; ++i)
+      for (int k = rp[i]; k < rp[i + 1]; ++k)
+        for (int e = 0; e < B * 6; ++e) {
+          const std::size_t at = static_cast<std::size_t>(B * 6) * k + e;
+          const double s = L.Pscale[6 * col[k] + e % 6];
+          L.Pq[at] = static_cast<std::int16_t>(s > 0 ? std::nearbyint(v[at] / s) : 0.0);  // exact: v is Q s
+        }
+    std::vector<double>().swap(L.P.values());
   }
   if (prm.reuse == SaReuse::none) {
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
@@ -910,7 +965,6 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   // Work vectors of the coarse level.
   C.f.resize(6 * nc);
   C.x.resize(6 * nc);
-  C.res.resize(6 * nc);
   C.d.resize(6 * nc);
   const bool extra_cycles = prm.cycle_gamma > 1 && index + 1 <= prm.cycle_gamma_levels;
   C.wr.resize(extra_cycles ? 6 * nc : 0);
@@ -969,8 +1023,8 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
       F.external.filter = filter;
       F.uses_external = true;
     }
-    F.res.resize(3 * n);
-    F.d.resize(3 * n);
+    F.res.resize(prm_.implicit_prolongator ? 3 * n : 0);  // the implicit P's residual vector
+    Eigen::VectorXd().swap(F.d);  // allocated by the first apply that brings no work vector
     NullSpace K;
     {
       ScopedTimer tk(times.other);
@@ -1015,20 +1069,32 @@ void with_inverses(const Level<B>& L, F&& f) {
     f(L.Dinvf.data());
 }
 
-/// d = c1 d + c2 Dinv res; x += d (or x = d when `assign`), Dinv in double or float.
-/// Parallel over block rows.
+/// One Chebyshev step fused with its residual, row by row: d = c1 d + c2 Dinv (f - A x)
+/// (x == nullptr: x = 0, d's old value is not read when c1 == 0). Reads x whole and writes
+/// only d, so the level needs one work vector and no residual vector. Parallel over rows.
 template <int B, class T>
-void chebyshev_update(int n, const T* Dinv, const double* res, double c1, double c2, double* d, double* x,
-                      bool assign) {
+void chebyshev_step(const BsrView<B, B>& A, const T* Dinv, const double* f, const double* x, double c1, double c2,
+                    double* d) {
+  const int n = A.rows;
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i) {
-    Eigen::Map<Vec<B>> di(d + B * i), xi(x + B * i);
-    const Mat<B> Di = value_block<B, B>(Dinv, i);
-    const Eigen::Map<const Vec<B>> ri(res + B * i);
+    Vec<B> r = Eigen::Map<const Vec<B>>(f + B * i);
+    if (x) r -= row_product(A, i, x);
+    Eigen::Map<Vec<B>> di(d + B * i);
     if (c1 == 0.0)
-      di.noalias() = c2 * (Di * ri);
+      di.noalias() = c2 * (value_block<B, B>(Dinv, i) * r);
     else
-      di = c1 * di + c2 * (Di * ri);
+      di = c1 * di + c2 * (value_block<B, B>(Dinv, i) * r);
+  }
+}
+
+/// x += d, or x = d when `assign`. Parallel over rows.
+template <int B>
+void add_correction(int n, const double* d, double* x, bool assign) {
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Map<const Vec<B>> di(d + B * i);
+    Eigen::Map<Vec<B>> xi(x + B * i);
     if (assign)
       xi = di;
     else
@@ -1037,28 +1103,23 @@ void chebyshev_update(int n, const T* Dinv, const double* res, double c1, double
 }
 
 /// Chebyshev iteration (spec 04 §5.2) on D^-1 A over [lower, upper] * lambda:
-/// x <- x + p-correction; with `zero_guess` x is overwritten (x = p-smoothing of 0).
+/// x <- x + p-correction; with `zero_guess` x is overwritten (x = p-smoothing of 0). Each
+/// step forms its residual f - A x from x itself (not by the update r -= A d), so the only
+/// work vector is the correction d (the level's work vector, see `work_of`).
 template <int B>
-void chebyshev(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x, bool zero_guess) {
+void chebyshev(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x, bool zero_guess, double* d) {
   const auto A = L.A();
   const int n = A.rows;
   const double a = prm.chebyshev_lower * L.lambda, b = prm.chebyshev_upper * L.lambda;
   const double theta = 0.5 * (a + b), delta = 0.5 * (b - a), sigma = theta / delta;
-  double* res = L.res.data();
-  double* d = L.d.data();
   auto run = [&](const auto* Dinv) {
     double rho = 1.0 / sigma;
-    if (zero_guess) {
-      chebyshev_update<B>(n, Dinv, f, 0.0, 1.0 / theta, d, x, /*assign=*/true);
-    } else {
-      residual(A, f, x, res);
-      chebyshev_update<B>(n, Dinv, res, 0.0, 1.0 / theta, d, x, false);
-    }
+    chebyshev_step<B>(A, Dinv, f, zero_guess ? nullptr : x, 0.0, 1.0 / theta, d);
+    add_correction<B>(n, d, x, /*assign=*/zero_guess);
     for (int j = 2; j <= prm.chebyshev_degree; ++j) {
-      // res <- res - A d (the first time from f when the guess was zero).
-      residual(A, (j == 2 && zero_guess) ? f : res, d, res);
       const double rho_new = 1.0 / (2.0 * sigma - rho);
-      chebyshev_update<B>(n, Dinv, res, rho_new * rho, 2.0 * rho_new / delta, d, x, false);
+      chebyshev_step<B>(A, Dinv, f, x, rho_new * rho, 2.0 * rho_new / delta, d);
+      add_correction<B>(n, d, x, false);
       rho = rho_new;
     }
   };
@@ -1066,11 +1127,11 @@ void chebyshev(const Level<B>& L, const SaAmg::Params& prm, const double* f, dou
 }
 
 template <int B>
-void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x) {
+void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f, double* x, double* d) {
   const int N = B * L.n();
   if (L.direct == 0) {  // smoother only: B = A^-1 - G A^-1 G^T, still SPD (Appendix A)
-    chebyshev(L, prm, f, x, true);
-    chebyshev(L, prm, f, x, false);
+    chebyshev(L, prm, f, x, true, d);
+    chebyshev(L, prm, f, x, false, d);
     return;
   }
   Eigen::Map<Eigen::VectorXd> xv(x, N);
@@ -1081,13 +1142,16 @@ void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f
     xv = L.ldlt.solve(xv);
 }
 
-/// f(values of P): P's values as the cycle reads them, in double or (single_prolongator) float.
+/// f(values of P, column scales or nullptr): P's values as the cycle reads them
+/// (prolongator_storage: double, float, or int16 with one scale per column).
 template <int B, class F>
 void with_prolongator_values(const Level<B>& L, F&& f) {
-  if (L.Pf.empty())
-    f(L.P.values().data());
+  if (!L.Pq.empty())
+    f(L.Pq.data(), L.Pscale.data());
+  else if (!L.Pf.empty())
+    f(L.Pf.data(), static_cast<const double*>(nullptr));
   else
-    f(L.Pf.data());
+    f(L.P.values().data(), static_cast<const double*>(nullptr));
 }
 
 /// Row i of A_f w (transpose: of A_f^T w), A_f the matrix P was smoothed with: A, with the
@@ -1140,17 +1204,16 @@ Vec<B> smoothing_row(const Level<B>& L, const BsrView<B, B>& A, int i, const dou
   return acc;
 }
 
-/// fc = P^T r. Implicit P: P^T = Phat^T (I - omega A_f^T D^-1) Z, with L.d as work vector.
+/// fc = P^T r. Implicit P: P^T = Phat^T (I - omega A_f^T D^-1) Z, with w as work vector.
 template <int B>
-void restrict_to(const Level<B>& L, const double* r, double* fc) {
+void restrict_to(const Level<B>& L, const double* r, double* fc, double* w) {
   if (!L.implicit) {
-    with_prolongator_values(L, [&](const auto* p) { spmv_transpose(L.P.view(), L.PT, p, r, fc); });
+    with_prolongator_values(L, [&](const auto* p, const double* s) { spmv_transpose(L.P.view(), L.PT, p, r, fc, s); });
     return;
   }
   const auto A = L.A();
   const int n = A.rows, nc = static_cast<int>(L.agg_ptr.size()) - 1;
   const int* agg = L.aggs.node_agg.data();
-  double* w = L.d.data();
   with_inverses(L, [&](const auto* Dinv) {
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
     for (int i = 0; i < n; ++i)
@@ -1169,17 +1232,16 @@ void restrict_to(const Level<B>& L, const double* r, double* fc) {
   }
 }
 
-/// x += P xc. Implicit P: P = Z (I - omega D^-1 A_f) Phat, with L.d as work vector.
+/// x += P xc. Implicit P: P = Z (I - omega D^-1 A_f) Phat, with t as work vector.
 template <int B>
-void prolong_add(const Level<B>& L, const double* xc, double* x) {
+void prolong_add(const Level<B>& L, const double* xc, double* x, double* t) {
   if (!L.implicit) {
-    with_prolongator_values(L, [&](const auto* p) { multiply_add(L.P.view(), p, xc, x); });
+    with_prolongator_values(L, [&](const auto* p, const double* s) { multiply_add(L.P.view(), p, xc, x, s); });
     return;
   }
   const auto A = L.A();
   const int n = A.rows;
   const int* agg = L.aggs.node_agg.data();
-  double* t = L.d.data();
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i)
     Eigen::Map<Vec<B>>(t + B * i) =
@@ -1194,40 +1256,59 @@ void prolong_add(const Level<B>& L, const double* xc, double* x) {
   });
 }
 
+/// One cycle on level L from a zero guess: x = B_L f. d is L's work vector (`work_of`, or on
+/// the fine level one lent by the caller).
 template <int B>
 void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, const SaAmg::Params& prm,
-           const double* f, double* x) {
+           const double* f, double* x, double* d) {
   if (L.coarsest) {
-    coarsest_solve(L, prm, f, x);
+    coarsest_solve(L, prm, f, x, d);
     return;
   }
   const Level<6>& C = coarse[index];
   const auto A = L.A();
-  chebyshev(L, prm, f, x, /*zero_guess=*/true);  // pre-smoothing (G*)
-  residual(A, f, x, L.res.data());
-  restrict_to(L, L.res.data(), C.f.data());
-  cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data());
+  chebyshev(L, prm, f, x, /*zero_guess=*/true, d);  // pre-smoothing (G*)
+  // The residual goes to the smoother's work vector, free until the post-smoothing (an
+  // implicit P needs that one for itself and has its own residual vector).
+  double* r = L.implicit ? L.res.data() : d;
+  residual(A, f, x, r);
+  restrict_to(L, r, C.f.data(), d);
+  cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
   // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
   if (!C.coarsest && index + 1 <= prm.cycle_gamma_levels)
     for (int r = 1; r < prm.cycle_gamma; ++r) {
       residual(C.A(), C.f.data(), C.x.data(), C.wr.data());
-      cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data());
+      cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data(), C.d.data());
       C.x += C.wx;
     }
-  prolong_add(L, C.x.data(), x);
-  chebyshev(L, prm, f, x, /*zero_guess=*/false);  // post-smoothing (G), same polynomial
+  prolong_add(L, C.x.data(), x, d);
+  chebyshev(L, prm, f, x, /*zero_guess=*/false, d);  // post-smoothing (G), same polynomial
+}
+
+/// The level's own work vector. The fine level allocates it on first use only: PCG lends
+/// its own idle vector instead (`SaAmg::apply(r, z, work)`).
+template <int B>
+double* work_of(const Level<B>& L) {
+  if (L.d.size() != B * L.n()) L.d.resize(B * L.n());
+  return L.d.data();
 }
 
 }  // namespace
 
 void SaAmg::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  WEFT_ASSERT(impl_->built, "SaAmg::apply before a successful setup");
+  apply(r, z, impl_->fine->d);
+}
+
+void SaAmg::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& work) const {
   const Impl& I = *impl_;
   WEFT_ASSERT(I.built, "SaAmg::apply before a successful setup");
   WEFT_ASSERT(r.size() == 3 * I.fine->n(), "SaAmg::apply: r has {} entries, expected {}", r.size(), 3 * I.fine->n());
   z.resize(r.size());
   if (r.size() == 0) return;
-  cycle(*I.fine, I.coarse, 0, prm_, r.data(), z.data());
+  work.resize(r.size());  // keeps the storage when the size is unchanged
+  cycle(*I.fine, I.coarse, 0, prm_, r.data(), z.data(), work.data());
 }
 
 void SaAmg::smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const {
@@ -1235,11 +1316,11 @@ void SaAmg::smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const {
   WEFT_ASSERT(l >= 0 && l < levels(), "level {} out of range", l);
   if (l == 0) {
     WEFT_ASSERT(x.size() == f.size() && f.size() == 3 * I.fine->n(), "size mismatch");
-    chebyshev(*I.fine, prm_, f.data(), x.data(), false);
+    chebyshev(*I.fine, prm_, f.data(), x.data(), false, work_of(*I.fine));
   } else {
     const Level<6>& C = I.coarse[l - 1];
     WEFT_ASSERT(x.size() == f.size() && f.size() == 6 * C.n(), "size mismatch");
-    chebyshev(C, prm_, f.data(), x.data(), false);
+    chebyshev(C, prm_, f.data(), x.data(), false, work_of(C));
   }
 }
 
@@ -1259,15 +1340,15 @@ Eigen::MatrixXd SaAmg::level_matrix(int l) const {
 Eigen::MatrixXd SaAmg::prolongator(int l) const {
   WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
   auto dense = [](const auto& L) {
-    if (L.implicit) {  // column by column, through the cycle's own application of P
-      const int n = L.n(), nc = static_cast<int>(L.agg_ptr.size()) - 1;
+    if (L.implicit || !L.Pq.empty()) {  // column by column, through the cycle's own application of P
+      const int n = L.n(), nc = L.implicit ? static_cast<int>(L.agg_ptr.size()) - 1 : L.P.cols();
       constexpr int B = std::remove_cvref_t<decltype(L)>::block;
       Eigen::MatrixXd D = Eigen::MatrixXd::Zero(B * n, 6 * nc);
       Eigen::VectorXd ec = Eigen::VectorXd::Zero(6 * nc), x(B * n);
       for (int c = 0; c < 6 * nc; ++c) {
         ec[c] = 1;
         x.setZero();
-        prolong_add(L, ec.data(), x.data());
+        prolong_add(L, ec.data(), x.data(), work_of(L));
         D.col(c) = x;
         ec[c] = 0;
       }

@@ -64,6 +64,18 @@ enum class SaReuse {
 };
 inline constexpr std::array<std::string_view, 3> sa_reuse_names = {"none", "aggregates", "frozen"};
 
+/// How the prolongators' values are stored (products always accumulate in double). P is
+/// rounded to the storage before the Galerkin product, so A_c = P^T A P holds exactly for the
+/// stored P and the cycle stays SPD whatever the storage.
+enum class ValueStorage {
+  double_precision,  ///< 8 bytes per value
+  single_precision,  ///< float, 4 bytes per value
+  fixed16,           ///< 2 bytes per value: P = Q diag(s), Q in int16 and one double scale per
+                     ///< coarse dof (column of P), s_c = max_i |P_ic| / 32767: an absolute error
+                     ///< of at most 1.5e-5 of the column's largest entry
+};
+inline constexpr std::array<std::string_view, 3> value_storage_names = {"double", "single", "fixed16"};
+
 /// Which upper estimate of lambda_max(D^-1 A) the smoother and omega use (spec 04 §4.7).
 enum class LambdaBound {
   ritz_residual,  ///< largest Ritz value + its residual bound |beta_m s_m|
@@ -227,11 +239,11 @@ class SaAmg {
     int prolongator_degree = 1;
     int prolongator_degree_levels = 2;
     SaReuse reuse = SaReuse::none;
-    /// Store the prolongators in single precision. P is rounded before the Galerkin product,
-    /// so A_c = P^T A P holds exactly for the stored P and the cycle stays SPD; the products
-    /// accumulate in double. At 10k-160k vertices the rounding left SA+PPCG's iterations
-    /// unchanged (bench/results/table-11-1/M-memory.md); it halves P's value bytes.
-    bool single_prolongator = true;
+    /// Storage of the prolongators' values (see `ValueStorage`). Single precision and fixed16
+    /// left SA+PPCG's iterations unchanged on every example at 10k-361k (and 1M pinned)
+    /// (bench/results/table-11-1/M-memory.md, M3-fixed16.md); single halves P's value bytes,
+    /// fixed16 quarters them.
+    ValueStorage prolongator_storage = ValueStorage::fixed16;
     /// Store the coarse operators A_l (l >= 1) in single precision: each block is formed in
     /// double by the Galerkin product and rounded once; smoothing, the next level's Galerkin
     /// product and the coarsest factorisation read the rounded, still exactly symmetric A_l.
@@ -275,8 +287,8 @@ class SaAmg {
       v.field("prolongator_degree_levels", prolongator_degree_levels,
               {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
-      v.field("single_prolongator", single_prolongator,
-              {Unit::none, Range::any(), "store the prolongators in single precision (rounded before the Galerkin product; products in double)"});
+      v.choice("prolongator_storage", prolongator_storage, value_storage_names,
+               "storage of the prolongators' values: double, single (float) or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");
       v.field("single_coarse_operators", single_coarse_operators,
               {Unit::none, Range::any(), "store the coarse operators in single precision (formed in double, rounded once; products in double)"});
       v.field("single_block_inverses", single_block_inverses,
@@ -304,6 +316,10 @@ class SaAmg {
   Status setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilterView& F);
   /// z = B r: one V(1,1) cycle from a zero guess.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  /// The same with `work` (resized to r's size) as the fine level's work vector: PCG lends
+  /// its idle A p vector, so the hierarchy keeps no fine-size vector of its own. Without it
+  /// the first `apply` allocates one.
+  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& work) const;
   PreconditionerInfo info() const;
   const SaStats& stats() const { return stats_; }
 

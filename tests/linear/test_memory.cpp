@@ -166,9 +166,12 @@ TEST_SUITE("linear") {
     // and prefiltering on the fly, SA+PPCG owned 1.9 A on the pinned 10k bench system without
     // contacts, and a contact set added a copy of Ahat (0.95 A). 2026-11-27, with the coarse
     // operators and block inverses in float and PPCG iterating in x: 0.95 A, 1.63 (1.52 with
-    // the implicit prolongator).
-    CHECK(own <= 1.1 * a);
-    CHECK((a + own) / (a + diag) <= 1.75);
+    // the implicit prolongator). Later that day, with P in fixed16, one work vector per level
+    // (fused Chebyshev steps), PCG's idle vector lent to the fine level and no vector for
+    // the prefiltered right-hand side: 0.75 A, 1.46 (1.44 implicit). The target is
+    // 1.5.
+    CHECK(own <= 0.85 * a);
+    CHECK((a + own) / (a + diag) <= 1.5);
     CHECK(sa.rep.operator_complexity < 2.3);
     // With the implicit fine prolongator (the memory option): the same iterations, less owned.
     SaPpcg::Params ip;
@@ -180,6 +183,6 @@ TEST_SUITE("linear") {
             "; iterations ", im.rep.iterations);
     CHECK(std::abs(im.rep.iterations - sa.rep.iterations) <= 1);
     CHECK(own_i < own);
-    CHECK((a + own_i) / (a + diag) <= 1.6);
+    CHECK((a + own_i) / (a + diag) <= 1.5);
   }
 }

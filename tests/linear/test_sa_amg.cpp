@@ -462,7 +462,7 @@ TEST_CASE("sa: a lower filter_scale widens the prolongator towards unfiltered sm
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
   SaAmg::Params base = small_coarse(8);
-  base.single_prolongator = false;
+  base.prolongator_storage = ValueStorage::double_precision;
   long long previous = 0, thesis_nnz = 0;
   int aggregates = -1;
   for (const double scale : {1.0, 0.5, 0.25, 0.1}) {
@@ -673,16 +673,19 @@ TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle 
 }
 
 TEST_CASE("sa: single-precision prolongators and coarse operators and block inverses keep the PCG iterations and take less memory") {
-  // The default stores P, the coarse operators and the smoother's block inverses in float (P
-  // rounded before the Galerkin product); the all-double hierarchy is the reference.
+  // The default stores the coarse operators and the smoother's block inverses in float; P is
+  // stored in float here (rounded before the Galerkin product; the default fixed16 has its
+  // own test); the all-double hierarchy is the reference.
   // Irregular cloth pinned at two sides and the re-entrant L.
   for (Pins pins : {Pins::two_sides, Pins::reentrant}) {
     CAPTURE(static_cast<int>(pins));
     Prefiltered p = prefiltered_cloth(61, Tessellation::irregular, pins);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
     SaAmg::Params dp = small_coarse(50), sp = small_coarse(50);
-    dp.single_prolongator = dp.single_coarse_operators = dp.single_block_inverses = false;
-    REQUIRE(sp.single_prolongator);  // the defaults
+    dp.prolongator_storage = ValueStorage::double_precision;
+    dp.single_coarse_operators = dp.single_block_inverses = false;
+    REQUIRE(sp.prolongator_storage == ValueStorage::fixed16);  // the defaults (fixed16: its own test)
+    sp.prolongator_storage = ValueStorage::single_precision;
     REQUIRE(sp.single_coarse_operators);
     REQUIRE(sp.single_block_inverses);
     SaAmg d(dp), f(sp);
@@ -706,8 +709,11 @@ TEST_CASE("sa: single-precision prolongators and coarse operators and block inve
     for (int which = 0; which < 3; ++which) {
       CAPTURE(which);
       SaAmg::Params q = small_coarse(50);
-      bool& flag = which == 0 ? q.single_prolongator : which == 1 ? q.single_coarse_operators : q.single_block_inverses;
-      flag = false;
+      q.prolongator_storage = ValueStorage::single_precision;
+      if (which == 0)
+        q.prolongator_storage = ValueStorage::double_precision;
+      else
+        (which == 1 ? q.single_coarse_operators : q.single_block_inverses) = false;
       SaAmg o(q);
       REQUIRE(o.setup(p.Ahat, ctx) == Status::success);
       const PcgResult ro = pcg(p.Ahat, p.chat, o);
@@ -715,6 +721,99 @@ TEST_CASE("sa: single-precision prolongators and coarse operators and block inve
       CHECK(std::abs(ro.iterations - rf.iterations) <= 1);
       CHECK(f.info().memory_bytes < o.info().memory_bytes);
     }
+  }
+}
+
+TEST_CASE("sa: fixed16 prolongators are int16 multiples of one scale per coarse dof and keep the V-cycle SPD") {
+  // P = Q diag(s): each column of the stored P is an integer multiple (|q| <= 32767) of its
+  // scale s_c = max_i |P_ic| / 32767, within s_c / 2 of the double P; the V-cycle built on it
+  // stays symmetric positive definite and needs the iterations of the double hierarchy.
+  for (const int m : {13, 61}) {
+    CAPTURE(m);
+    Prefiltered p = prefiltered_cloth(m, Tessellation::irregular, m == 13 ? Pins::reentrant : Pins::two_sides);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    SaAmg::Params dp = small_coarse(m == 13 ? 8 : 50), qp = dp, sp = dp;
+    dp.prolongator_storage = ValueStorage::double_precision;
+    qp.prolongator_storage = ValueStorage::fixed16;
+    sp.prolongator_storage = ValueStorage::single_precision;
+    SaAmg d(dp), q(qp), f(sp);
+    REQUIRE(d.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(q.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(f.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(q.levels() >= 3);
+    REQUIRE(q.levels() == d.levels());
+    // Every level's P lies on its columns' grids; level 0 (the same fine matrix for both) is
+    // the double P rounded to the nearest grid point. The coarser P differ beyond rounding:
+    // they smooth with coarse operators formed from different P.
+    for (int l = 0; l + 1 < q.levels(); ++l) {
+      CAPTURE(l);
+      const Eigen::MatrixXd Pd = d.prolongator(l), Pq = q.prolongator(l);
+      REQUIRE(Pq.rows() == Pd.rows());
+      double worst_grid = 0, worst_error = 0;
+      int columns = 0;
+      for (Eigen::Index c = 0; c < Pq.cols(); ++c) {
+        const double top = Pq.col(c).cwiseAbs().maxCoeff(), scale = top / 32767.0;
+        if (top == 0) continue;
+        ++columns;
+        for (Eigen::Index i = 0; i < Pq.rows(); ++i) {
+          const double k = Pq(i, c) / scale;
+          worst_grid = std::max(worst_grid, std::abs(k - std::round(k)));
+          if (l == 0) worst_error = std::max(worst_error, std::abs(Pq(i, c) - Pd(i, c)) / scale);
+        }
+      }
+      CHECK(columns > 0);
+      CHECK(worst_grid <= 1e-6);  // on the column's int16 grid
+      if (l == 0) {
+        REQUIRE(Pq.cols() == Pd.cols());
+        CHECK(worst_error <= 0.5 + 1e-6);  // rounded to the nearest point of it
+        CHECK(worst_error > 1e-3);         // and the rounding happened: coarser than float's
+      }
+    }
+    if (m == 13) {
+      const Eigen::MatrixXd Bq = assemble_preconditioner(q, p.Ahat.rows()), Bd = assemble_preconditioner(d, p.Ahat.rows());
+      CHECK((Bq - Bq.transpose()).norm() <= 1e-12 * Bq.norm());
+      CHECK(min_symmetric_eigenvalue(Bq) > 0);
+      CHECK((Bq - Bd).norm() <= 1e-3 * Bd.norm());
+      CHECK((Bq - Bd).norm() > 1e-7 * Bd.norm());
+    } else {
+      const PcgResult rd = pcg(p.Ahat, p.chat, d), rq = pcg(p.Ahat, p.chat, q);
+      MESSAGE("double P: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; fixed16: "
+                           << rq.iterations << " iterations, " << q.info().memory_bytes << " bytes; float: "
+                           << f.info().memory_bytes << " bytes");
+      CHECK(rd.converged);
+      CHECK(rq.converged);
+      CHECK(std::abs(rq.iterations - rd.iterations) <= 1);
+      CHECK(q.info().memory_bytes < f.info().memory_bytes);
+    }
+  }
+}
+
+TEST_CASE("sa: a lent work vector gives the same cycle and the hierarchy owns no fine-size vector") {
+  // PCG lends its idle A p vector to the fine level (apply(r, z, work)); without it the first
+  // apply allocates one. Both give the same z bit for bit, with the stored and the implicit P.
+  for (const bool implicit : {false, true}) {
+    CAPTURE(implicit);
+    Prefiltered p = prefiltered_cloth(31, Tessellation::irregular, Pins::two_sides);
+    SolveContext ctx{&p.sys.pins, &p.sys.x};
+    SaAmg::Params prm = small_coarse(20);
+    prm.implicit_prolongator = implicit;
+    SaAmg sa(prm);
+    REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
+    REQUIRE(sa.levels() >= 3);
+    const std::size_t owned = sa.info().memory_bytes;
+    const Eigen::VectorXd r = Eigen::VectorXd::Random(p.Ahat.rows());
+    Eigen::VectorXd z_lent, z_own, work = Eigen::VectorXd::Constant(5, std::nan(""));
+    sa.apply(r, z_lent, work);
+    CHECK(work.size() == r.size());
+    CHECK(sa.info().memory_bytes == owned);
+    work.setConstant(std::nan(""));  // whatever the lent vector holds is overwritten
+    Eigen::VectorXd z_again;
+    sa.apply(r, z_again, work);
+    CHECK(z_again == z_lent);
+    sa.apply(r, z_own);
+    CHECK(z_own == z_lent);
+    CHECK(z_own.norm() > 0);
+    CHECK(sa.info().memory_bytes == owned + sizeof(double) * static_cast<std::size_t>(r.size()));
   }
 }
 
@@ -737,7 +836,7 @@ TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
         const VertexFilterView view = on_the_fly ? F.view() : VertexFilterView{};
         SaAmg::Params ep = small_coarse(m == 13 ? 8 : 50);
         ep.filtered_smoothing = filtered;
-        ep.single_prolongator = false;  // P in double: the reference for the implicit one
+        ep.prolongator_storage = ValueStorage::double_precision;  // the reference for the implicit one
         SaAmg::Params ip = ep;
         ip.implicit_prolongator = true;
         SaAmg e(ep), im(ip);
