@@ -61,6 +61,18 @@ inline Eigen::Matrix<double, R, C> value_block(const T* val, std::ptrdiff_t k) {
   return Eigen::Map<const Eigen::Matrix<T, R, C, Eigen::RowMajor>>(val + static_cast<std::ptrdiff_t>(R * C) * k).template cast<double>();
 }
 
+/// The same for int16 storage (fixed16 prolongators: the caller applies the scales). Through
+/// float, which the compiler vectorises with the baseline instruction set: 1.3x faster than
+/// Eigen's direct cast in a 3x6 prolongation kernel (1.6x slower than float storage against
+/// 1.3x; measured on an AMD EPYC, x86-64 baseline flags).
+template <int R, int C>
+inline Eigen::Matrix<double, R, C> value_block(const std::int16_t* val, std::ptrdiff_t k) {
+  alignas(16) float tmp[R * C];
+  const std::int16_t* q = val + static_cast<std::ptrdiff_t>(R * C) * k;
+  for (int e = 0; e < R * C; ++e) tmp[e] = static_cast<float>(q[e]);
+  return Eigen::Map<const Eigen::Matrix<float, R, C, Eigen::RowMajor>>(tmp).template cast<double>();
+}
+
 /// Non-owning view of a BSR matrix: #rows block rows, R*C doubles per block.
 ///
 /// A square view may be stored by one triangle (`src` non-null, see `SymBlockMatrix`): the
