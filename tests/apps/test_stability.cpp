@@ -157,4 +157,45 @@ TEST_SUITE("slow") {
     WARN_MESSAGE(std::max(linear, impulse) <= 3 * std::min(linear, impulse),
                  "V-20: linear and impulse maxima differ by more than 3x (" << linear << " s against " << impulse << " s)");
   }
+
+  TEST_CASE("V-20 at 120 vertices: ADONIS stable at 20 ms and within 1 % at 10 ms where impulses fail at 0.5 ms and linear compliance stretches by more than 5 %") {
+    // The whip against the near wall (every run strikes it) at 120 vertices (1.7 mm edges)
+    // and 20 rad/s, with the contact re-detection and Newton limits raised as in the
+    // resolution sweep (bench/results/rods/figure_9_2_resolution/). The full sweep gives
+    // impulses 0.05 ms, linear compliance 5 ms and ADONIS 20 ms by the thesis' 50 % rule,
+    // and at 1 % strain neither impulses nor linear compliance down to 50 us against 10 ms
+    // for ADONIS. This checks four step sizes of it (about 15 s).
+    StabilityOptions o;
+    o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
+    o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]",
+                   "obstacles.0.center=[0.17,0,0]", "rods.0.vertices=120", "contact.redetections=20",
+                   "integrator.max_iterations=200"};
+    o.duration = 1.0;
+    o.dts = {0.02, 0.01, 0.001, 0.0005};
+    o.vary_key = "rods.0.motion.angular_velocity.2";
+    o.vary_values = {"20"};
+    o.combos = {"rods_impulse", "rods_linear", "rods_adonis"};
+    o.out_dir = temp_dir("stab_v20_fine").string();
+    o.quiet = true;
+    std::vector<StabilityResult> r;
+    REQUIRE(run_stability(o, &r) == 0);
+    REQUIRE(r.size() == 12);
+    for (const auto& c : r) {
+      CAPTURE(c.combo);
+      CAPTURE(c.dt);
+      CAPTURE(c.message);
+      CHECK(c.contact_steps > 0);  // every run strikes the wall
+      if (c.combo == "rods_adonis") {
+        CHECK(c.outcome == Stability::stable);
+        if (c.dt <= 0.01) CHECK(c.max_strain <= 0.0101);  // its stretch tolerance, 1 %
+      } else if (c.combo == "rods_impulse") {
+        CHECK(c.outcome == Stability::excessive_strain);  // even at 0.5 ms: ADONIS / impulse >= 40 here
+      } else if (c.dt >= 0.01) {
+        CHECK(c.outcome == Stability::excessive_strain);  // linear compliance at 10 and 20 ms
+      } else {
+        CHECK(c.outcome == Stability::stable);
+        CHECK(c.max_strain > 0.05);  // stable by the 50 % rule, but stretched by 10-35 %
+      }
+    }
+  }
 }
