@@ -110,6 +110,23 @@ double largest_stable(const std::vector<StabilityResult>& r, const std::string& 
   }
   return best;
 }
+/// The whip sweep of Figure 9.2 at 20 rad/s for the three response methods: scenes/whip.json
+/// set up as bench/rods/figure_9_2.sh sets it up (the handle 0.3 rad before the wall, no
+/// gravity), 1 s simulated, plus `extra` overrides.
+StabilityOptions whip_at_20(const std::string& name, std::vector<double> dts, const std::vector<std::string>& extra = {}) {
+  StabilityOptions o;
+  o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
+  o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]"};
+  o.overrides.insert(o.overrides.end(), extra.begin(), extra.end());
+  o.duration = 1.0;
+  o.dts = std::move(dts);
+  o.vary_key = "rods.0.motion.angular_velocity.2";
+  o.vary_values = {"20"};
+  o.combos = {"rods_impulse", "rods_linear", "rods_adonis"};
+  o.out_dir = temp_dir(name).string();
+  o.quiet = true;
+  return o;
+}
 }  // namespace
 
 TEST_SUITE("slow") {
@@ -118,16 +135,7 @@ TEST_SUITE("slow") {
   // (the handle starting 0.3 rad before the wall, no gravity: see the script), 1 s simulated
   // instead of 5 s, on a coarse sweep of 8 steps from 0.5 ms to 100 ms. About 1-2 minutes.
   TEST_CASE("V-20 reduced: the whip at 20 rad/s - ADONIS's largest stable step in contact beats linear compliance's and is 10x impulses'") {
-    StabilityOptions o;
-    o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
-    o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]"};
-    o.duration = 1.0;
-    o.dts = {0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005};
-    o.vary_key = "rods.0.motion.angular_velocity.2";
-    o.vary_values = {"20"};
-    o.combos = {"rods_impulse", "rods_linear", "rods_adonis"};
-    o.out_dir = temp_dir("stab_v20").string();
-    o.quiet = true;
+    const StabilityOptions o = whip_at_20("stab_v20", {0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005});
     std::vector<StabilityResult> r;
     REQUIRE(run_stability(o, &r) == 0);
     REQUIRE(r.size() == 24);
@@ -165,18 +173,9 @@ TEST_SUITE("slow") {
     // impulses 0.05 ms, linear compliance 5 ms and ADONIS 20 ms by the thesis' 50 % rule,
     // and at 1 % strain neither impulses nor linear compliance down to 50 us against 10 ms
     // for ADONIS. This checks four step sizes of it (about 15 s).
-    StabilityOptions o;
-    o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
-    o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]",
-                   "obstacles.0.center=[0.17,0,0]", "rods.0.vertices=120", "contact.redetections=20",
-                   "integrator.max_iterations=200"};
-    o.duration = 1.0;
-    o.dts = {0.02, 0.01, 0.001, 0.0005};
-    o.vary_key = "rods.0.motion.angular_velocity.2";
-    o.vary_values = {"20"};
-    o.combos = {"rods_impulse", "rods_linear", "rods_adonis"};
-    o.out_dir = temp_dir("stab_v20_fine").string();
-    o.quiet = true;
+    const StabilityOptions o =
+        whip_at_20("stab_v20_fine", {0.02, 0.01, 0.001, 0.0005},
+                   {"obstacles.0.center=[0.17,0,0]", "rods.0.vertices=120", "contact.redetections=20", "integrator.max_iterations=200"});
     std::vector<StabilityResult> r;
     REQUIRE(run_stability(o, &r) == 0);
     REQUIRE(r.size() == 12);
