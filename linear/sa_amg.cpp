@@ -714,11 +714,15 @@ void make_coarsest(Level<B>& L, const SaAmg::Params& prm) {
 inline int round_to_int(double x) { return static_cast<int>(x + std::copysign(0.5, x)); }
 
 /// Rounds P's values to the storage the cycle will read them from (ValueStorage); fixed16
-/// also sets the per-column scales L.Pscale. Applied before the Galerkin product.
+/// also fills L.Pq and the per-column scales L.Pscale (the double values, kept for the
+/// Galerkin product, are then exactly Pq diag(Pscale)). Applied before the Galerkin product.
 template <int B>
 void round_to_storage(Level<B>& L, ValueStorage storage) {
   std::vector<double>& v = L.P.values();
-  if (storage != ValueStorage::fixed16) L.Pscale = {};
+  if (storage != ValueStorage::fixed16) {
+    L.Pscale = {};
+    L.Pq = {};
+  }
   if (storage == ValueStorage::single_precision) {
     for (double& x : v) x = static_cast<double>(static_cast<float>(x));
     return;
@@ -738,13 +742,16 @@ void round_to_storage(Level<B>& L, ValueStorage storage) {
         double& m = s[6 * J + e % 6];
         m = std::max(m, std::abs(v[static_cast<std::size_t>(B * 6) * T.blk[t] + e]) / 32767.0);
       }
+  L.Pq.resize(v.size());
 #pragma omp parallel for schedule(static) if (rows > parallel_rows)
   for (int i = 0; i < rows; ++i)
     for (int k = rp[i]; k < rp[i + 1]; ++k)
       for (int e = 0; e < B * 6; ++e) {
-        double& x = v[static_cast<std::size_t>(B * 6) * k + e];
+        const std::size_t at = static_cast<std::size_t>(B * 6) * k + e;
         const double m = s[6 * col[k] + e % 6];
-        x = m > 0 ? round_to_int(x / m) * m : 0.0;
+        const int q = m > 0 ? round_to_int(v[at] / m) : 0;
+        L.Pq[at] = static_cast<std::int16_t>(q);
+        v[at] = q * m;
       }
 }
 
@@ -933,28 +940,15 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     }
   }
   L.Pf = {};
-  L.Pq = {};
   if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
     L.P.clear();
     L.PT = {};
+    L.Pq = {};
     L.Pscale = {};
   } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
     L.Pf.assign(L.P.values().begin(), L.P.values().end());
     std::vector<double>().swap(L.P.values());
-  } else if (prm.prolongator_storage == ValueStorage::fixed16) {
-    const std::vector<double>& v = L.P.values();
-    L.Pq.resize(v.size());
-    const int rows = L.P.rows();
-    const int* rp = L.P.row_ptr().data();
-    const int* col = L.P.col().data();
-#pragma omp parallel for schedule(static) if (rows > parallel_rows)
-    for (int i = 0; i < rows; ++i)
-      for (int k = rp[i]; k < rp[i + 1]; ++k)
-        for (int e = 0; e < B * 6; ++e) {
-          const std::size_t at = static_cast<std::size_t>(B * 6) * k + e;
-          const double s = L.Pscale[6 * col[k] + e % 6];
-          L.Pq[at] = static_cast<std::int16_t>(s > 0 ? round_to_int(v[at] / s) : 0);  // exact: v is Q s
-        }
+  } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
     std::vector<double>().swap(L.P.values());
   }
   if (prm.reuse == SaReuse::none) {
