@@ -618,14 +618,13 @@ struct Level {
   // correction, also the residual restricted to the next level; res: the residual when the
   // implicit P uses d itself (level 0 only).
   mutable Eigen::VectorXd f, x, res, d;
-  mutable Eigen::VectorXd wr, wx;  // extra coarse cycles (W-cycle levels)
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
                     P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + PT.memory_bytes() + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
-    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size() + wr.size() + wx.size());
+    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
     if (direct == 2) m += sizeof(double) * (ldlt.matrixLDLT().size() + 2 * ldlt.rows());
     return m;
@@ -966,9 +965,6 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   C.f.resize(6 * nc);
   C.x.resize(6 * nc);
   C.d.resize(6 * nc);
-  const bool extra_cycles = prm.cycle_gamma > 1 && index + 1 <= prm.cycle_gamma_levels;
-  C.wr.resize(extra_cycles ? 6 * nc : 0);
-  C.wx.resize(extra_cycles ? 6 * nc : 0);
   return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse);
 }
 
@@ -1256,18 +1252,19 @@ void prolong_add(const Level<B>& L, const double* xc, double* x, double* t) {
   });
 }
 
-/// One cycle on level L from a zero guess: x = B_L f. d is L's work vector (`work_of`, or on
-/// the fine level one lent by the caller).
+/// One cycle on level L: x = B_L f from a zero guess, or (zero_guess false, L not the
+/// coarsest) x += B_L (f - A_L x) from the x given, the same linear map applied to the
+/// residual. d is L's work vector (`work_of`, or on the fine level one lent by the caller).
 template <int B>
 void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, const SaAmg::Params& prm,
-           const double* f, double* x, double* d) {
+           const double* f, double* x, double* d, bool zero_guess = true) {
   if (L.coarsest) {
     coarsest_solve(L, prm, f, x, d);
     return;
   }
   const Level<6>& C = coarse[index];
   const auto A = L.A();
-  chebyshev(L, prm, f, x, /*zero_guess=*/true, d);  // pre-smoothing (G*)
+  chebyshev(L, prm, f, x, zero_guess, d);  // pre-smoothing (G*)
   // The residual goes to the smoother's work vector, free until the post-smoothing (an
   // implicit P needs that one for itself and has its own residual vector).
   double* r = L.implicit ? L.res.data() : d;
@@ -1275,13 +1272,11 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   restrict_to(L, r, C.f.data(), d);
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
-  // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4).
+  // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4). The
+  // cycle from the current x_c applies that update in place: no residual or correction vector.
   if (!C.coarsest && index + 1 <= prm.cycle_gamma_levels)
-    for (int r = 1; r < prm.cycle_gamma; ++r) {
-      residual(C.A(), C.f.data(), C.x.data(), C.wr.data());
-      cycle(C, coarse, index + 1, prm, C.wr.data(), C.wx.data(), C.d.data());
-      C.x += C.wx;
-    }
+    for (int r = 1; r < prm.cycle_gamma; ++r)
+      cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data(), /*zero_guess=*/false);
   prolong_add(L, C.x.data(), x, d);
   chebyshev(L, prm, f, x, /*zero_guess=*/false, d);  // post-smoothing (G), same polynomial
 }
