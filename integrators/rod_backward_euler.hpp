@@ -218,6 +218,11 @@ class RodBackwardEuler {
       // 190 times until max_iterations (0.1 ms); the halvings ran out (0.1 ms, later); 200
       // iterations moved the iterate without converging (ADONIS, 50 us).
       const bool at_resolution = largest_move(dir) <= 1e3 * step_tol;
+      auto stop_at_resolution = [&](int iterations) {
+        rep.iterations = iterations;
+        rep.stop_reason = "Newton step at the resolution of E_inc";
+        return rep;
+      };
       double s = 1;
       double Et = 0;
       bool round_off = false;
@@ -227,18 +232,15 @@ class RodBackwardEuler {
         Et = potential(b, trial, h);
         if (Et <= E + prm_.armijo * s * slope) break;
         // Below round-off of E_inc the decrease cannot be resolved: accept the full step if
-        // E_inc is unchanged to round-off (the next, smaller Newton step decides convergence).
+        // E_inc is unchanged to round-off (the next, smaller Newton step decides convergence,
+        // unless this one is already at E_inc's resolution).
         if (s == 1 && std::isfinite(Et) && std::abs(Et - E) <= 1e-12 * (std::abs(E) + 1e-300)) {
           ++rep.round_off_steps;
           round_off = true;
           break;
         }
         if (halvings >= prm_.max_halvings) {
-          if (at_resolution) {
-            rep.iterations = it;
-            rep.stop_reason = "Newton step at the resolution of E_inc";
-            return rep;
-          }
+          if (at_resolution) return stop_at_resolution(it);
           rep.status = Status::numerical_issue;
           rep.message = fmt::format("line search failed at Newton iteration {} after {} halvings (|f| = {:.3e}, Newton step {:.3e} m)",
                                     it, halvings, f.norm(), largest_move(dir));
@@ -247,11 +249,9 @@ class RodBackwardEuler {
         s *= 0.5;
       }
       if (at_resolution && (round_off || s < 1)) {
-        const bool moved = !(trial == b.d);
-        if (moved) b.d = trial;
-        rep.iterations = it + (moved ? 1 : 0);
-        rep.stop_reason = "Newton step at the resolution of E_inc";
-        return rep;
+        if (trial == b.d) return stop_at_resolution(it);
+        b.d = trial;
+        return stop_at_resolution(it + 1);
       }
       if (trial == b.d) {  // Armijo accepted a step that changes nothing, on a step that is not tiny
         rep.status = Status::numerical_issue;

@@ -62,9 +62,9 @@ inline Eigen::Matrix<double, R, C> value_block(const T* val, std::ptrdiff_t k) {
 }
 
 /// The same for int16 storage (fixed16 prolongators: the caller applies the scales). Through
-/// float, which the compiler vectorises with the baseline instruction set: 1.3x faster than
-/// Eigen's direct cast in a 3x6 prolongation kernel (1.6x slower than float storage against
-/// 1.3x; measured on an AMD EPYC, x86-64 baseline flags).
+/// float, which the compiler vectorises with the baseline instruction set: with Eigen's
+/// direct cast, SA+PPCG's solve at 1M vertices took 1.10x that with float storage; through
+/// float, 0.94-0.96x (same-run ratios, bench/results/table-11-1/M3-fixed16/pinned1M*).
 template <int R, int C>
 inline Eigen::Matrix<double, R, C> value_block(const std::int16_t* val, std::ptrdiff_t k) {
   alignas(16) float tmp[R * C];

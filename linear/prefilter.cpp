@@ -43,7 +43,7 @@ void prefilter_rhs(const BlockCsr& A, const ConstraintSet& c, const Eigen::Vecto
 }
 
 void unfilter_solution(const ConstraintSet& c, const Eigen::VectorXd& y, Eigen::VectorXd& x) {
-  x = y;
+  if (&x != &y) x = y;
   c.filter(x);
   x += c.target();
 }
@@ -119,29 +119,17 @@ const BlockCsr& PrefilteredSystem::matrix(const BlockCsr& A) {
   return Ahat_;
 }
 
-const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b) {
-  if (!active()) return b;
-  WEFT_ASSERT(A_ != nullptr, "{}", "PrefilteredSystem::rhs before matrix");
-  ScopedTimer t(seconds_);
-  prefilter_rhs(*A_, *ctx_.constraints, b, chat_);
-  return chat_;
-}
+const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b) { return active() ? rhs(b, chat_) : b; }
 
 const Eigen::VectorXd& PrefilteredSystem::rhs(const Eigen::VectorXd& b, Eigen::VectorXd& out) {
-  if (!active()) {
-    out = b;
-    return out;
-  }
-  WEFT_ASSERT(A_ != nullptr, "{}", "PrefilteredSystem::rhs before matrix");
+  WEFT_ASSERT(active() && A_ != nullptr, "{}", "PrefilteredSystem::rhs(b, out) without constraints or before matrix");
   ScopedTimer t(seconds_);
   prefilter_rhs(*A_, *ctx_.constraints, b, out);
   return out;
 }
 
 void PrefilteredSystem::finish(Eigen::VectorXd& y) const {
-  if (!active()) return;
-  ctx_.constraints->filter(y);  // x = S y + z, in place
-  y += ctx_.constraints->target();
+  if (active()) unfilter_solution(*ctx_.constraints, y, y);
 }
 
 double PrefilteredSystem::take_seconds() {

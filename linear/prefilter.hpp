@@ -27,7 +27,7 @@ void prefilter_matrix(const BlockCsr& A, const ConstraintSet& c, BlockCsr& Ahat)
 bool already_prefiltered(const BlockCsr& A, const ConstraintSet& c);
 /// chat = S (b - A z).
 void prefilter_rhs(const BlockCsr& A, const ConstraintSet& c, const Eigen::VectorXd& b, Eigen::VectorXd& chat);
-/// x = z + S y (the final projection makes the constraints hold to round-off).
+/// x = z + S y (the final projection makes the constraints hold to round-off); x may be y.
 void unfilter_solution(const ConstraintSet& c, const Eigen::VectorXd& y, Eigen::VectorXd& x);
 
 /// What it takes to apply Ahat = S A S + Sigma (I - S) on the fly from A, without storing
@@ -67,7 +67,7 @@ class PrefilteredSystem {
   const BlockCsr& matrix(const BlockCsr& A);
   /// The right-hand side to solve with: b itself, or chat.
   const Eigen::VectorXd& rhs(const Eigen::VectorXd& b);
-  /// chat written to `out` (b itself without constraints); returns out. Nothing is kept.
+  /// chat written to `out`, which is returned; only when `active()`. Nothing is kept.
   const Eigen::VectorXd& rhs(const Eigen::VectorXd& b, Eigen::VectorXd& out);
   /// In place: y -> x = z + S y (nothing without constraints; no copy of y).
   void finish(Eigen::VectorXd& y) const;

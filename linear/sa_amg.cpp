@@ -737,10 +737,11 @@ void round_to_storage(Level<B>& L, ValueStorage storage) {
 #pragma omp parallel for schedule(static) if (cols > parallel_rows)
   for (int J = 0; J < cols; ++J)
     for (int t = T.ptr[J]; t < T.ptr[J + 1]; ++t)
-      for (int e = 0; e < B * 6; ++e) {  // the largest |entry| of each column, divided by 32767
+      for (int e = 0; e < B * 6; ++e) {  // the largest |entry| of each column
         double& m = s[6 * J + e % 6];
-        m = std::max(m, std::abs(v[static_cast<std::size_t>(B * 6) * T.blk[t] + e]) / 32767.0);
+        m = std::max(m, std::abs(v[static_cast<std::size_t>(B * 6) * T.blk[t] + e]));
       }
+  for (double& m : s) m /= 32767.0;
   L.Pq.resize(v.size());
 #pragma omp parallel for schedule(static) if (rows > parallel_rows)
   for (int i = 0; i < rows; ++i)
