@@ -584,18 +584,21 @@ struct Level {
 
   std::vector<double> Dinv;     // n blocks B x B (setup; freed when Dinvf holds them)
   std::vector<float> Dinvf;     // single_block_inverses: the smoother's copy
+  // Neither (after the setup): the smoother solves with A's diagonal blocks (fine level,
+  // fine_inverses_on_the_fly).
   double ritz = 0, lambda = 0;
 
   // Coarsening structure (kept under reuse = aggregates).
   std::vector<std::uint8_t> strong, special;
-  std::vector<std::uint8_t> filter;  // filter_scale < 1: the smoothing filter's strong flags
+  std::vector<std::uint8_t> filter;  // filter_scale != 1: the smoothing filter's strong flags
   sa::Aggregates aggs;
   int num_special = 0;
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
   std::vector<double> Pscale;    // one scale per coarse dof
-  TransposeIndex PT;
+  TransposeIndex PT;             // setup only (Galerkin product, fixed16 scales)
+  std::vector<int> rchunks;      // row chunks of the restriction P^T r (`restriction_chunks`)
   std::vector<std::uint8_t> dummy;  // per coarse dof
   int deficient = 0;
   bool coarsest = false;
@@ -622,7 +625,7 @@ struct Level {
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
-                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + PT.memory_bytes() + vb(dummy);
+                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + PT.memory_bytes() + vb(rchunks) + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -653,7 +656,7 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.coarse_size >= 1, "coarse_size", p.coarse_size, ">= 1")
       .require(p.max_levels >= 1 && p.max_levels <= 30, "max_levels", p.max_levels, "in [1, 30]")
       .require(p.stall_ratio > 0 && p.stall_ratio <= 1, "stall_ratio", p.stall_ratio, "in (0, 1]")
-      .require(p.filter_scale > 0 && p.filter_scale <= 1, "filter_scale", p.filter_scale, "in (0, 1]")
+      .require(p.filter_scale > 0, "filter_scale", p.filter_scale, "> 0")
       .require(p.dense_limit >= 1, "dense_limit", p.dense_limit, ">= 1")
       .require(p.qr_tolerance > 0 && p.qr_tolerance < 1, "qr_tolerance", p.qr_tolerance, "in (0, 1)")
       .require(p.lanczos_steps >= 1 && p.lanczos_steps <= 100, "lanczos_steps", p.lanczos_steps, "in [1, 100]")
@@ -755,16 +758,49 @@ void round_to_storage(Level<B>& L, ValueStorage storage) {
       }
 }
 
-/// The smoother's block inverses in the precision the cycle reads (single_block_inverses):
-/// called once the setup of the level no longer needs them in double.
+/// The smoother's block inverses in the precision the cycle reads (single_block_inverses),
+/// or none on the fine level (fine_inverses_on_the_fly): called once the setup of the level
+/// no longer needs them in double.
 template <int B>
 void keep_inverses(Level<B>& L, const SaAmg::Params& prm) {
-  if (prm.single_block_inverses) {
+  if (B == 3 && prm.fine_inverses_on_the_fly) {
+    std::vector<double>().swap(L.Dinv);
+    std::vector<float>().swap(L.Dinvf);
+  } else if (prm.single_block_inverses) {
     L.Dinvf.assign(L.Dinv.begin(), L.Dinv.end());
     std::vector<double>().swap(L.Dinv);
   } else {
     std::vector<float>().swap(L.Dinvf);
   }
+}
+
+/// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
+/// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
+/// one parity then share no column, and P^T r is a lock-free parallel scatter whose sums do
+/// not depend on the thread count (`restrict_rows`). With first(J) and last(J) the first and
+/// last rows of column J, b_{k+1} = max(b_k + min_rows, 1 + max{last(J) : first(J) < b_k}):
+/// a column starting in chunk k ends before b_{k+2}. A badly ordered mesh gives few, long
+/// chunks (less parallelism), never a wrong sum.
+template <int R>
+std::vector<int> restriction_chunks(const BsrView<R, 6>& P, int min_rows = 512) {
+  const int n = P.rows;
+  std::vector<int> first(P.cols, n), last(P.cols, -1);
+  for (int i = 0; i < n; ++i)
+    for (int k = P.row_ptr[i]; k < P.row_ptr[i + 1]; ++k) {
+      first[P.col[k]] = std::min(first[P.col[k]], i);
+      last[P.col[k]] = std::max(last[P.col[k]], i);
+    }
+  std::vector<int> reach(n + 1, -1);  // reach[r] = max last(J) over first(J) <= r
+  for (int J = 0; J < P.cols; ++J)
+    if (first[J] < n) reach[first[J]] = std::max(reach[first[J]], last[J]);
+  for (int r = 1; r < n; ++r) reach[r] = std::max(reach[r], reach[r - 1]);
+  std::vector<int> b{0};
+  while (b.back() < n) {
+    const int bk = b.back();
+    const int next = std::max(bk + min_rows, bk > 0 ? reach[bk - 1] + 1 : 0);
+    b.push_back(std::min(next, n));
+  }
+  return b;
 }
 
 double bound_of(const sa::LanczosResult& r, LambdaBound b) {
@@ -816,8 +852,8 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
         ScopedTimer t(T.aggregation);
         L.aggs = sa::aggregate<B>(A, L.strong, L.special);
       }
-      if (prm.filtered_smoothing && prm.filter_scale < 1) {
-        // The smoothing filter's own, lower threshold; blocks touching a special node stay
+      if (prm.filtered_smoothing && prm.filter_scale != 1) {
+        // The smoothing filter's own threshold; blocks touching a special node stay
         // weak as in L.strong.
         ScopedTimer t(T.strength);
         sa::strong_flags<B>(A, mu, prm.filter_scale * prm.theta, L.filter);
@@ -951,6 +987,14 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
     std::vector<double>().swap(L.P.values());
   }
+  // The cycle restricts by P's rows (`restrict_rows`): the transpose index served the
+  // Galerkin product and the fixed16 scales only (8 bytes per block of P).
+  L.PT = {};
+  if (L.implicit)
+    L.rchunks = {};
+  else
+    L.rchunks = restriction_chunks(L.P.view());
+  st.restriction_chunks = static_cast<int>(L.rchunks.size()) - (L.implicit ? 0 : 1);
   if (prm.reuse == SaReuse::none) {
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
     // it back now (only `aggregates` refreshes values on the kept structure).
@@ -1057,13 +1101,49 @@ int SaAmg::levels() const {
 
 namespace {
 
-/// f(the smoother's block inverses), in double or (single_block_inverses) float.
+/// f(the smoother's block inverses), in double or (single_block_inverses) float, or a null
+/// double pointer when the level keeps none (fine_inverses_on_the_fly).
 template <int B, class F>
 void with_inverses(const Level<B>& L, F&& f) {
-  if (L.Dinvf.empty())
+  if (!L.Dinvf.empty())
+    f(L.Dinvf.data());
+  else if (!L.Dinv.empty())
     f(L.Dinv.data());
   else
-    f(L.Dinvf.data());
+    f(static_cast<const double*>(nullptr));
+}
+
+/// D_i^-1 r with D_i the diagonal block of row i as the operator reads it (through the
+/// filters): by the adjugate when Sylvester's criterion shows D_i SPD (one division, no
+/// square root), else as `invert_block_diagonal` inverts it (Cholesky, LU, zero if
+/// singular).
+inline Vec<3> solve_diagonal(const BsrView<3, 3>& A, int i, const Vec<3>& r) {
+  int kd = A.row_ptr[i];
+  while (kd < A.row_ptr[i + 1] && A.col[kd] != i) ++kd;
+  if (kd == A.row_ptr[i + 1]) return Vec<3>::Zero();
+  const Mat<3> D = A.block(i, kd);
+  const double c00 = D(1, 1) * D(2, 2) - D(1, 2) * D(2, 1), c01 = D(1, 2) * D(2, 0) - D(1, 0) * D(2, 2),
+               c02 = D(1, 0) * D(2, 1) - D(1, 1) * D(2, 0);
+  const double det = D(0, 0) * c00 + D(0, 1) * c01 + D(0, 2) * c02;
+  if (D(0, 0) > 0 && D(0, 0) * D(1, 1) - D(0, 1) * D(1, 0) > 0 && det > 0) {
+    Mat<3> adj;  // adj = cof^T
+    adj << c00, D(0, 2) * D(2, 1) - D(0, 1) * D(2, 2), D(0, 1) * D(1, 2) - D(0, 2) * D(1, 1),  //
+        c01, D(0, 0) * D(2, 2) - D(0, 2) * D(2, 0), D(0, 2) * D(1, 0) - D(0, 0) * D(1, 2),     //
+        c02, D(0, 1) * D(2, 0) - D(0, 0) * D(2, 1), D(0, 0) * D(1, 1) - D(0, 1) * D(1, 0);
+    return (adj * r) / det;
+  }
+  Eigen::FullPivLU<Mat<3>> lu(D);
+  return lu.isInvertible() ? Vec<3>(lu.solve(r)) : Vec<3>::Zero();
+}
+
+/// D_i^-1 v from the stored inverses, or (Dinv == nullptr: the fine level under
+/// fine_inverses_on_the_fly) by `solve_diagonal`. Coarse levels always keep theirs.
+template <int B, class T>
+Vec<B> inverse_times(const BsrView<B, B>& A, const T* Dinv, int i, const Vec<B>& v) {
+  if constexpr (B == 3) {
+    if (!Dinv) return solve_diagonal(A, i, v);
+  }
+  return value_block<B, B>(Dinv, i) * v;
 }
 
 /// One Chebyshev step fused with its residual, row by row: d = c1 d + c2 Dinv (f - A x)
@@ -1078,10 +1158,11 @@ void chebyshev_step(const BsrView<B, B>& A, const T* Dinv, const double* f, cons
     Vec<B> r = Eigen::Map<const Vec<B>>(f + B * i);
     if (x) r -= row_product(A, i, x);
     Eigen::Map<Vec<B>> di(d + B * i);
+    const Vec<B> z = inverse_times(A, Dinv, i, r);
     if (c1 == 0.0)
-      di.noalias() = c2 * (value_block<B, B>(Dinv, i) * r);
+      di.noalias() = c2 * z;
     else
-      di = c1 * di + c2 * (value_block<B, B>(Dinv, i) * r);
+      di = c1 * di + c2 * z;
   }
 }
 
@@ -1201,11 +1282,38 @@ Vec<B> smoothing_row(const Level<B>& L, const BsrView<B, B>& A, int i, const dou
   return acc;
 }
 
+/// fc = (P diag(s))^T r by P's rows: each row i adds P_iJ^T r_i to fc_J. The even chunks of
+/// `restriction_chunks` scatter in parallel, then the odd ones, so every fc_J sums its terms
+/// in one fixed order whatever the thread count, with no transpose index of P.
+template <int R, class V>
+void restrict_rows(const BsrView<R, 6>& P, const std::vector<int>& chunks, const V* val, const double* r, double* fc,
+                   const double* scale) {
+  const int m = 6 * P.cols, count = static_cast<int>(chunks.size()) - 1;
+#pragma omp parallel if (P.rows > parallel_rows)
+  {
+#pragma omp for schedule(static)
+    for (int j = 0; j < m; ++j) fc[j] = 0.0;
+    for (int parity = 0; parity < 2; ++parity) {
+#pragma omp for schedule(dynamic, 1)
+      for (int c = parity; c < count; c += 2)
+        for (int i = chunks[c]; i < chunks[c + 1]; ++i) {
+          const Eigen::Map<const Vec<R>> ri(r + R * i);
+          for (int k = P.row_ptr[i]; k < P.row_ptr[i + 1]; ++k)
+            Eigen::Map<Vec<6>>(fc + 6 * P.col[k]).noalias() += value_block<R, 6>(val, k).transpose() * ri;
+        }
+    }
+    if (scale) {
+#pragma omp for schedule(static)
+      for (int j = 0; j < m; ++j) fc[j] *= scale[j];
+    }
+  }
+}
+
 /// fc = P^T r. Implicit P: P^T = Phat^T (I - omega A_f^T D^-1) Z, with w as work vector.
 template <int B>
 void restrict_to(const Level<B>& L, const double* r, double* fc, double* w) {
   if (!L.implicit) {
-    with_prolongator_values(L, [&](const auto* p, const double* s) { spmv_transpose(L.P.view(), L.PT, p, r, fc, s); });
+    with_prolongator_values(L, [&](const auto* p, const double* s) { restrict_rows(L.P.view(), L.rchunks, p, r, fc, s); });
     return;
   }
   const auto A = L.A();
@@ -1215,7 +1323,7 @@ void restrict_to(const Level<B>& L, const double* r, double* fc, double* w) {
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
     for (int i = 0; i < n; ++i)
       Eigen::Map<Vec<B>>(w + B * i) =
-          agg[i] >= 0 ? Vec<B>(value_block<B, B>(Dinv, i) * Eigen::Map<const Vec<B>>(r + B * i)) : Vec<B>::Zero();
+          agg[i] >= 0 ? inverse_times(A, Dinv, i, Vec<B>(Eigen::Map<const Vec<B>>(r + B * i))) : Vec<B>::Zero();
   });
 #pragma omp parallel for schedule(static) if (nc > parallel_rows / 8)
   for (int J = 0; J < nc; ++J) {
@@ -1248,7 +1356,7 @@ void prolong_add(const Level<B>& L, const double* xc, double* x, double* t) {
     for (int i = 0; i < n; ++i) {
       if (agg[i] < 0) continue;
       Eigen::Map<Vec<B>>(x + B * i) +=
-          Eigen::Map<const Vec<B>>(t + B * i) - L.omega * (value_block<B, B>(Dinv, i) * smoothing_row(L, A, i, t, false));
+          Eigen::Map<const Vec<B>>(t + B * i) - L.omega * inverse_times(A, Dinv, i, smoothing_row(L, A, i, t, false));
     }
   });
 }

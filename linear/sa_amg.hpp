@@ -97,6 +97,7 @@ struct SaLevelStats {
   int deficient = 0;           ///< aggregates whose local QR dropped a column
   int max_aggregate = 0;       ///< largest aggregate (nodes)
   long long nnz_p = 0;         ///< stored blocks of P_l
+  int restriction_chunks = 0;  ///< row chunks of the parallel restriction P_l^T r (0: implicit P_l or coarsest)
   double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
   double lambda = 0;           ///< the inflated bound used
 };
@@ -211,7 +212,8 @@ class SaAmg {
     /// The smoothing filter's threshold relative to theta: A_f keeps the blocks with mu_ij >
     /// filter_scale theta max_k mu_ik, while aggregation uses theta. 1: the same flags (the
     /// thesis). Below 1, P also sees the weaker couplings (the hinges of irregular meshes) at
-    /// a wider pattern.
+    /// a wider pattern; above 1, P drops the weaker strong couplings (a thinner P and sparser
+    /// coarse operators; at filter_scale theta >= 1, P keeps the tentative one's pattern).
     double filter_scale = 1.0;
     int coarse_size = 50;             ///< stop coarsening at <= this many nodes
     int max_levels = 10;
@@ -252,10 +254,19 @@ class SaAmg {
     /// Keep the smoother's block inverses D_l^-1 in single precision once the level is built
     /// (the Lanczos bound and the prolongator smoothing use them in double first).
     bool single_block_inverses = true;
+    /// The fine level's smoother solves with each diagonal block of A (read through the
+    /// filters, as the setup read it) when it needs D_i^-1, instead of keeping n inverses
+    /// (36 bytes per vertex in single precision): a closed-form 3x3 solve per row and
+    /// smoothing step, beside a row product of about 13 blocks. The setup still inverts the
+    /// blocks in double for the Lanczos bound and the prolongator smoothing, then frees them.
+    /// An `implicit_prolongator` solves with the same blocks.
+    bool fine_inverses_on_the_fly = true;
     /// Apply the fine level's prolongator P = Z (I - omega D^-1 A_f) Phat from A instead of
     /// storing it (Z: zero rows on special nodes). P is still formed for the Galerkin product,
     /// then freed; the cycle keeps Phat (single precision), the aggregates and the strong
-    /// flags. Saves most of P's memory at two extra products with A per cycle.
+    /// flags, at two extra products with A per cycle. Smaller than a P stored in single or
+    /// double precision; about the size of the default fixed16 P (about 40 bytes per block),
+    /// which the cycle restricts by rows with no transpose index.
     bool implicit_prolongator = false;
 
     template <class V>
@@ -267,7 +278,7 @@ class SaAmg {
       v.field("filtered_smoothing", filtered_smoothing,
               {Unit::none, Range::any(), "smooth the prolongator with the filtered matrix (weak blocks lumped into the diagonal)"});
       v.field("filter_scale", filter_scale,
-              {Unit::none, Range::open_closed(0, 1), "threshold of the smoothing filter relative to theta (1: the aggregation's strong flags)"});
+              {Unit::none, Range::gt(0), "threshold of the smoothing filter relative to theta (1: the aggregation's strong flags)"});
       v.field("coarse_size", coarse_size, {Unit::none, Range::ge(1), "stop coarsening at this many nodes or fewer"});
       v.field("max_levels", max_levels, {Unit::none, Range::closed(1, 30), "most levels of the hierarchy"});
       v.field("stall_ratio", stall_ratio, {Unit::none, Range::open_closed(0, 1), "stop when a level keeps more than this fraction of the nodes"});
@@ -293,6 +304,8 @@ class SaAmg {
               {Unit::none, Range::any(), "store the coarse operators in single precision (formed in double, rounded once; products in double)"});
       v.field("single_block_inverses", single_block_inverses,
               {Unit::none, Range::any(), "keep the smoother's block inverses in single precision after the setup (products in double)"});
+      v.field("fine_inverses_on_the_fly", fine_inverses_on_the_fly,
+              {Unit::none, Range::any(), "the fine level's smoother solves with A's diagonal blocks at each use instead of storing their inverses"});
       v.field("implicit_prolongator", implicit_prolongator,
               {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
     }

@@ -142,13 +142,14 @@ TEST_SUITE("apps") {
       CHECK(contacts["pinned/" + std::string(t)] == 0);
       CHECK(springs["dropHorizontal/" + std::string(t)] == 0);
     }
-    // The memory option beside the default, on every example: the same iterations, less memory.
+    // The implicit P beside the default, on every example: the same iterations. Its memory is
+    // about the default fixed16 P's (test_memory.cpp compares both with a single-precision P).
     REQUIRE(sa_its.size() == 10);
     REQUIRE(implicit_its.size() == 10);
     for (const auto& [key, its] : sa_its) {
       CAPTURE(key);
       CHECK(std::abs(implicit_its[key] - its) <= 1.0);
-      CHECK(implicit_mem[key] < sa_mem[key]);
+      CHECK(std::abs(implicit_mem[key] - sa_mem[key]) <= 0.1 * sa_mem[key]);
     }
     CHECK(slurp(dir / "bench_linear.md").find("Table 11.1") != std::string::npos);
     for (const char* s : {"## Multigrid hierarchies", "| pinned | regular | 961 | SA+PPCG | 1 |", "galerkin"})

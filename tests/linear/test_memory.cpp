@@ -169,11 +169,14 @@ TEST_SUITE("linear") {
     // the implicit prolongator). Later that day, with P in fixed16, one work vector per level
     // (fused Chebyshev steps), PCG's idle vector lent to the fine level and no vector for
     // the prefiltered right-hand side: 0.75 A, 1.46 (1.44 implicit). The target is
-    // 1.5.
-    CHECK(own <= 0.85 * a);
+    // 1.5. Then the fine smoother solved with A's diagonal blocks (no stored inverses) and
+    // the cycle restricted by P's rows (no transpose index): 0.69 A, 1.41.
+    CHECK(own <= 0.75 * a);
     CHECK((a + own) / (a + diag) <= 1.5);
     CHECK(sa.rep.operator_complexity < 2.3);
-    // With the implicit fine prolongator (the memory option): the same iterations, less owned.
+    // With the implicit fine prolongator: the same iterations, and less memory than a stored
+    // single-precision P. The default fixed16 P, restricted by rows with no transpose index,
+    // takes about as much as the implicit one (4.42 against 4.41 MB here).
     SaPpcg::Params ip;
     ip.preconditioner.implicit_prolongator = true;
     const Solved im = solve<SaPpcg>(sys.A, sys.b, c, sys.x, ip);
@@ -182,7 +185,14 @@ TEST_SUITE("linear") {
     MESSAGE("implicit prolongator: SA+PPCG owns ", own_i / 1e6, " MB; (A + SA) / (A + Diag) = ", (a + own_i) / (a + diag),
             "; iterations ", im.rep.iterations);
     CHECK(std::abs(im.rep.iterations - sa.rep.iterations) <= 1);
-    CHECK(own_i < own);
+    SaPpcg::Params sp;
+    sp.preconditioner.prolongator_storage = ValueStorage::single_precision;
+    const Solved si = solve<SaPpcg>(sys.A, sys.b, c, sys.x, sp);
+    REQUIRE(si.rep.status == Status::success);
+    const double own_s = static_cast<double>(si.rep.memory_bytes);
+    MESSAGE("single-precision P: SA+PPCG owns ", own_s / 1e6, " MB");
+    CHECK(own_i < own_s);
+    CHECK(own < own_s);
     CHECK((a + own_i) / (a + diag) <= 1.5);
   }
 }
