@@ -153,7 +153,7 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                   maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
   // SA+PPCG with named settings changed, to run beside the default in one run.
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_implicit", "SA+PPCG implicit P",
-                               "SA+PPCG with the fine prolongator applied from A instead of stored (the memory option)",
+                               "SA+PPCG with the fine prolongator applied from A instead of stored",
                                {"implicit_prolongator=true"}));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2", "SA+PPCG P degree 2",
                                "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
@@ -161,6 +161,10 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2w", "SA+PPCG P degree 2, W",
                                "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
                                {"prolongator_degree=2", "cycle_gamma=2"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat", "SA+PPCG flat",
+                               "SA+PPCG aggregating at 0.25 (smoothing at theta), degree-2 prolongators on levels 0-1, W-cycle on levels 1-2: "
+                               "flat iterations on the regular sheets",
+                               {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"}));
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

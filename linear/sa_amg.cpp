@@ -590,7 +590,7 @@ struct Level {
 
   // Coarsening structure (kept under reuse = aggregates).
   std::vector<std::uint8_t> strong, special;
-  std::vector<std::uint8_t> filter;  // filter_scale != 1: the smoothing filter's strong flags
+  std::vector<std::uint8_t> filter;  // theta != aggregation_theta: the smoothing filter's strong flags
   sa::Aggregates aggs;
   int num_special = 0;
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
@@ -656,7 +656,7 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.coarse_size >= 1, "coarse_size", p.coarse_size, ">= 1")
       .require(p.max_levels >= 1 && p.max_levels <= 30, "max_levels", p.max_levels, "in [1, 30]")
       .require(p.stall_ratio > 0 && p.stall_ratio <= 1, "stall_ratio", p.stall_ratio, "in (0, 1]")
-      .require(p.filter_scale > 0, "filter_scale", p.filter_scale, "> 0")
+      .require(p.aggregation_theta >= 0 && p.aggregation_theta < 1, "aggregation_theta", p.aggregation_theta, "in [0, 1) (0: theta)")
       .require(p.dense_limit >= 1, "dense_limit", p.dense_limit, ">= 1")
       .require(p.qr_tolerance > 0 && p.qr_tolerance < 1, "qr_tolerance", p.qr_tolerance, "in (0, 1)")
       .require(p.lanczos_steps >= 1 && p.lanczos_steps <= 100, "lanczos_steps", p.lanczos_steps, "in [1, 100]")
@@ -812,6 +812,9 @@ double bound_of(const sa::LanczosResult& r, LambdaBound b) {
   }
 }
 
+/// The threshold aggregation follows (aggregation_theta, or theta when it is 0).
+double aggregation_threshold(const SaAmg::Params& prm) { return prm.aggregation_theta > 0 ? prm.aggregation_theta : prm.theta; }
+
 /// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
 template <int B>
 Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse) {
@@ -845,18 +848,18 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       std::vector<double> mu;
       {
         ScopedTimer t(T.strength);
-        sa::strength<B>(A, prm.theta, prm.strength, mu, L.strong);
+        sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong);
         L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
       }
       {
         ScopedTimer t(T.aggregation);
         L.aggs = sa::aggregate<B>(A, L.strong, L.special);
       }
-      if (prm.filtered_smoothing && prm.filter_scale != 1) {
+      if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
         // The smoothing filter's own threshold; blocks touching a special node stay
         // weak as in L.strong.
         ScopedTimer t(T.strength);
-        sa::strong_flags<B>(A, mu, prm.filter_scale * prm.theta, L.filter);
+        sa::strong_flags<B>(A, mu, prm.theta, L.filter);
         sa::weaken_special<B>(A, L.special, L.filter);
       } else {
         L.filter = {};

@@ -205,16 +205,20 @@ class SaAmg {
  public:
   static constexpr std::string_view name = "sa";
   struct Params {
-    double theta = 0.48;               ///< strength threshold, relative to the row maximum
+    /// Strength threshold relative to the row maximum (spec 04 §4.3, the thesis' 0.48): block
+    /// (i, j) is strong if mu_ij > theta max_k mu_ik. The prolongator is smoothed with the
+    /// filtered matrix A_f of the strong blocks (weak ones lumped into the diagonal).
+    double theta = 0.48;
+    /// Threshold, relative to the row maximum as theta, of the couplings aggregation follows
+    /// and special-node detection counts; 0: theta itself (the thesis aggregates along
+    /// theta's strong blocks). 0.25 merges about 9 nodes per aggregate instead of 6 on the
+    /// sheets: smaller coarse levels, which let degree-2 prolongators and the W-cycle fit in
+    /// 1.5x Diag-PCG's memory (`weft bench linear` solver `sa_ppcg_flat`,
+    /// bench/results/table-11-1/M4-aggregation-theta.md).
+    double aggregation_theta = 0;
     SocMeasure strength = SocMeasure::spectral;
     double diagonal_dominance = 1e-2;  ///< tau_dd: special if sum_j mu_ij < tau_dd
     bool filtered_smoothing = true;    ///< smooth P with A_f (weak blocks lumped into the diagonal)
-    /// The smoothing filter's threshold relative to theta: A_f keeps the blocks with mu_ij >
-    /// filter_scale theta max_k mu_ik, while aggregation uses theta. 1: the same flags (the
-    /// thesis). Below 1, P also sees the weaker couplings (the hinges of irregular meshes) at
-    /// a wider pattern; above 1, P drops the weaker strong couplings (a thinner P and sparser
-    /// coarse operators; at filter_scale theta >= 1, P keeps the tentative one's pattern).
-    double filter_scale = 1.0;
     int coarse_size = 50;             ///< stop coarsening at <= this many nodes
     int max_levels = 10;
     double stall_ratio = 0.8;          ///< stop when n_{l+1} > stall_ratio n_l
@@ -229,7 +233,8 @@ class SaAmg {
     /// the V-cycle; 2 makes the correction of such a level two V-cycles from it (a W-cycle
     /// there, B_l = 2 V_l - V_l A_l V_l, still SPD). Spec 04 §2.4: W-cycles converge under the
     /// weak approximation property alone, which one-step smoothed rigid-mode aggregates of a
-    /// bending-dominated sheet keep while the V-cycle degrades with depth.
+    /// bending-dominated sheet keep while the V-cycle degrades with depth. The extra cycles
+    /// run in place, with no vectors of their own.
     int cycle_gamma = 1;
     int cycle_gamma_levels = 1;        ///< how many coarse levels (from level 1) get cycle_gamma
     /// Damped Jacobi steps of the prolongator smoother, P = (Z (I - omega D^-1 A_f))^degree Phat,
@@ -271,14 +276,15 @@ class SaAmg {
 
     template <class V>
     void visit(V& v) {
-      v.field("theta", theta, {Unit::none, Range::open(0, 1), "strength threshold relative to the row's largest mu_ij"});
+      v.field("theta", theta,
+              {Unit::none, Range::open(0, 1), "strength threshold relative to the row's largest mu_ij; the prolongator is smoothed with the strong blocks"});
+      v.field("aggregation_theta", aggregation_theta,
+              {Unit::none, Range::closed_open(0, 1), "threshold of the couplings aggregation follows; 0: theta (the thesis)"});
       v.choice("strength", strength, soc_measure_names, "measure of the scaled block A_ii^-1/2 A_ij A_jj^-1/2");
       v.field("diagonal_dominance", diagonal_dominance,
               {Unit::none, Range::ge(0), "a node with sum_j mu_ij below this is special (relaxation only)"});
       v.field("filtered_smoothing", filtered_smoothing,
               {Unit::none, Range::any(), "smooth the prolongator with the filtered matrix (weak blocks lumped into the diagonal)"});
-      v.field("filter_scale", filter_scale,
-              {Unit::none, Range::gt(0), "threshold of the smoothing filter relative to theta (1: the aggregation's strong flags)"});
       v.field("coarse_size", coarse_size, {Unit::none, Range::ge(1), "stop coarsening at this many nodes or fewer"});
       v.field("max_levels", max_levels, {Unit::none, Range::closed(1, 30), "most levels of the hierarchy"});
       v.field("stall_ratio", stall_ratio, {Unit::none, Range::open_closed(0, 1), "stop when a level keeps more than this fraction of the nodes"});

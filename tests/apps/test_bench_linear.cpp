@@ -109,7 +109,7 @@ TEST_SUITE("apps") {
       // The multigrid hierarchy of the first setup: the fine level is the sheet, each level
       // has the nodes the previous one aggregated into; one-level solvers record none.
       const json& h = j.at("hierarchy");
-      if (j.at("solver") == "sa_ppcg" || j.at("solver") == "sa_ppcg_implicit") {
+      if (j.at("solver") == "sa_ppcg" || j.at("solver") == "sa_ppcg_flat" || j.at("solver") == "sa_ppcg_implicit") {
         REQUIRE(h.size() == j.at("levels").get<size_t>());
         REQUIRE(h.size() >= 2);
         CHECK(h[0].at("nodes").get<int>() == c.at("vertices").get<int>());
@@ -142,8 +142,8 @@ TEST_SUITE("apps") {
       CHECK(contacts["pinned/" + std::string(t)] == 0);
       CHECK(springs["dropHorizontal/" + std::string(t)] == 0);
     }
-    // The implicit P beside the default, on every example: the same iterations. Its memory is
-    // about the default fixed16 P's (test_memory.cpp compares both with a single-precision P).
+    // The implicit P beside the default, on every example: the same iterations; its memory is
+    // about the stored fixed16 P's (test_memory.cpp compares both with a single-precision P).
     REQUIRE(sa_its.size() == 10);
     REQUIRE(implicit_its.size() == 10);
     for (const auto& [key, its] : sa_its) {
@@ -199,18 +199,18 @@ TEST_SUITE("apps") {
   TEST_CASE("bench: weft bench linear --solvers sa_ppcg:KEY=VALUE runs SA+PPCG with those settings beside the default") {
     const fs::path out = temp_dir("bench_linear_with");
     std::map<std::string, json> by_solver;
-    for (const json& j : bench_results("--quick --examples pinned --tessellations regular --solvers sa_ppcg sa_ppcg:theta=0.25 "
-                                       "sa_ppcg:theta=0.25:cycle_gamma=2", out))
+    for (const json& j : bench_results("--quick --examples pinned --tessellations regular --solvers sa_ppcg sa_ppcg:aggregation_theta=0.25 "
+                                       "sa_ppcg:aggregation_theta=0.25:cycle_gamma=2", out))
       by_solver[j.at("solver").get<std::string>()] = j;
     REQUIRE(by_solver.size() == 3);
-    REQUIRE(by_solver.count("sa_ppcg:theta=0.25") == 1);
-    REQUIRE(by_solver.count("sa_ppcg:theta=0.25:cycle_gamma=2") == 1);
-    // A lower strength threshold merges more nodes per aggregate: fewer level-1 nodes.
+    REQUIRE(by_solver.count("sa_ppcg:aggregation_theta=0.25") == 1);
+    REQUIRE(by_solver.count("sa_ppcg:aggregation_theta=0.25:cycle_gamma=2") == 1);
+    // A lower aggregation threshold merges more nodes per aggregate: fewer level-1 nodes.
     const auto level1 = [&](const std::string& s) { return by_solver.at(s).at("hierarchy")[1].at("nodes").get<int>(); };
-    MESSAGE("level-1 nodes: theta 0.48 " << level1("sa_ppcg") << ", theta 0.25 " << level1("sa_ppcg:theta=0.25"));
-    CHECK(level1("sa_ppcg:theta=0.25") < level1("sa_ppcg"));
-    CHECK(level1("sa_ppcg:theta=0.25:cycle_gamma=2") == level1("sa_ppcg:theta=0.25"));
-    CHECK(slurp(out / "bench_linear.md").find("SA+PPCG theta=0.25 cycle_gamma=2") != std::string::npos);
+    MESSAGE("level-1 nodes: aggregation at theta = 0.48 " << level1("sa_ppcg") << ", at 0.25 " << level1("sa_ppcg:aggregation_theta=0.25"));
+    CHECK(level1("sa_ppcg:aggregation_theta=0.25") < level1("sa_ppcg"));
+    CHECK(level1("sa_ppcg:aggregation_theta=0.25:cycle_gamma=2") == level1("sa_ppcg:aggregation_theta=0.25"));
+    CHECK(slurp(out / "bench_linear.md").find("SA+PPCG aggregation_theta=0.25 cycle_gamma=2") != std::string::npos);
     // Bad entries are named before any work starts.
     for (const auto& [entry, message] : {std::pair<std::string, std::string>{"sa_ppcg:theta=2", "theta = 2 is out of range"},
                                          {"diag_pcg:theta=0.3", "only sa_ppcg takes settings"},
@@ -227,55 +227,34 @@ TEST_SUITE("apps") {
 }
 
 TEST_SUITE("slow") {
-  // The sheets' bending makes SA+PPCG's iterations grow with the resolution; two smoothing
-  // steps of the first two prolongators keep them flat (I2-prolongator-degree.md).
-  TEST_CASE("bench: with prolongator_degree 2 the SA+PPCG iterations stay flat from 10k to 160k vertices on pinned") {
-    const fs::path out = temp_dir("bench_linear_degree");
-    std::map<int, std::map<int, double>> its;  // degree -> m -> mean iterations
-    for (const int degree : {1, 2}) {
-      const fs::path dir = out / fmt::format("d{}", degree);
-      const Result r = run_weft(fmt::format("bench linear --examples pinned --tessellations regular --sizes 100 400 --steps 1 "
-                                            "--solvers sa_ppcg --sa prolongator_degree={} --out {}", degree, dir.string()));
-      CAPTURE(r.output);
-      REQUIRE(r.code == 0);
-      const auto lines = read_jsonl(dir / "bench_linear.jsonl");
-      REQUIRE(lines.size() == 3);
-      for (size_t i = 1; i < lines.size(); ++i) {
-        const json& j = lines[i];
-        REQUIRE(j.at("failures").get<int>() == 0);
-        its[degree][j.at("case").at("m").get<int>()] = j.at("mean_iterations").get<double>();
-        // The wider prolongator of the fine level.
-        const double p_per_row = j.at("hierarchy")[0].at("p_blocks").get<double>() / j.at("hierarchy")[0].at("nodes").get<double>();
-        CHECK(p_per_row > (degree == 2 ? 3.5 : 2.0));
-        CHECK(p_per_row < (degree == 2 ? 6.0 : 3.0));
-      }
-    }
-    MESSAGE("SA+PPCG iterations at 10,201 / 160,801 vertices: degree 1 " << its[1][100] << " / " << its[1][400] << ", degree 2 "
-                                                                        << its[2][100] << " / " << its[2][400]);
-    CHECK(its[1][400] >= 1.8 * its[1][100]);   // the growth the option removes
-    CHECK(its[2][400] <= 1.25 * its[2][100]);  // flat
-    CHECK(its[2][400] < its[1][400]);
-    fs::remove_all(out);
-  }
-
-  // Re-entrant keeps growing under degree 2 alone (2.7x to 752k); a W-cycle on level 1 on top
-  // of it is the configuration that stays within 2x on the three regular examples
-  // (I3-degree-2-w-cycle.md).
-  TEST_CASE("bench: with prolongator_degree 2 and a W-cycle on level 1 the SA+PPCG iterations stay flat on re-entrant") {
-    const fs::path out = temp_dir("bench_linear_p2w");
-    std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
+  // The sheets' bending makes the thesis' hierarchy's iterations grow with the resolution
+  // (I2-prolongator-degree.md); sa_ppcg_flat's degree-2 prolongators on levels 0-1 and W-cycle
+  // on levels 1-2 keep them flat (M4-aggregation-theta.md).
+  TEST_CASE("bench: sa_ppcg_flat iterations stay flat from 10k to 160k vertices on pinned and re-entrant where the thesis' grow") {
+    const fs::path out = temp_dir("bench_linear_flat");
+    std::map<std::string, std::map<std::string, std::map<int, double>>> its;  // example -> solver -> m -> mean iterations
+    std::map<std::string, double> p_per_row;                                  // solver -> fine P blocks per row (pinned, 10k)
     const auto results =
-        bench_results("--examples re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_p2 sa_ppcg_p2w", out);
-    REQUIRE(results.size() == 6);
+        bench_results("--examples pinned re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_flat", out);
+    REQUIRE(results.size() == 8);
     for (const json& j : results) {
       REQUIRE(j.at("failures").get<int>() == 0);
-      its[j.at("solver").get<std::string>()][j.at("case").at("m").get<int>()] = j.at("mean_iterations").get<double>();
+      const std::string ex = j.at("case").at("example"), solver = j.at("solver");
+      const int m = j.at("case").at("m").get<int>();
+      its[ex][solver][m] = j.at("mean_iterations").get<double>();
+      if (ex == "pinned" && m == 100)
+        p_per_row[solver] = j.at("hierarchy")[0].at("p_blocks").get<double>() / j.at("hierarchy")[0].at("nodes").get<double>();
     }
-    for (const auto& [solver, by_m] : its)
-      MESSAGE(solver << ": " << by_m.at(100) << " iterations at 7,701 vertices, " << by_m.at(400) << " at 120,801");
-    CHECK(its["sa_ppcg"][400] >= 1.8 * its["sa_ppcg"][100]);
-    CHECK(its["sa_ppcg_p2w"][400] <= 1.3 * its["sa_ppcg_p2w"][100]);
-    CHECK(its["sa_ppcg_p2w"][400] < its["sa_ppcg_p2"][400]);
+    for (const auto& [ex, by_solver] : its)
+      for (const auto& [solver, by_m] : by_solver)
+        MESSAGE(ex << " " << solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400");
+    CHECK(p_per_row["sa_ppcg_flat"] > p_per_row["sa_ppcg"]);  // the wider, degree-2 P
+    for (const char* ex : {"pinned", "re-entrant"}) {
+      CAPTURE(ex);
+      CHECK(its[ex]["sa_ppcg"][400] >= 1.8 * its[ex]["sa_ppcg"][100]);  // the growth sa_ppcg_flat removes
+      CHECK(its[ex]["sa_ppcg_flat"][400] <= 1.5 * its[ex]["sa_ppcg_flat"][100]);
+      CHECK(its[ex]["sa_ppcg_flat"][400] < its[ex]["sa_ppcg"][400]);
+    }
     fs::remove_all(out);
   }
 }

@@ -423,7 +423,9 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
-  SaAmg one(small_coarse(8));
+  SaAmg::Params one_step = small_coarse(8);
+  one_step.prolongator_degree = 1;  // the thesis' (the default)
+  SaAmg one(one_step);
   REQUIRE(one.setup(p.Ahat, ctx) == Status::success);
   for (int levels : {1, 2}) {
     CAPTURE(levels);
@@ -456,23 +458,23 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 2, .implicit_prolongator = true}), ConfigError);
 }
 
-TEST_CASE("sa: filter_scale moves the prolongator between the tentative one and unfiltered smoothing and keeps the V-cycle SPD") {
-  // filter_scale only moves the smoothing filter's threshold: the aggregates stay those of
-  // theta, P widens as the threshold falls; above 1/theta no coupling is kept and P has the
-  // tentative prolongator's pattern (one block per aggregated node); with every coupling kept (no
-  // special node on the unpinned sheet) P is the unfiltered smoother's.
+TEST_CASE("sa: theta moves the smoothing filter between few couplings and unfiltered smoothing, aggregates fixed by aggregation_theta, and keeps the V-cycle SPD") {
+  // theta only sets the smoothing filter's threshold: the aggregates stay those of
+  // aggregation_theta, P widens as theta falls, and with every coupling kept (no special node
+  // on the unpinned sheet) P is the unfiltered smoother's. theta = aggregation_theta is the
+  // thesis' filter (aggregation_theta = 0, the default, means theta).
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
   SaAmg::Params base = small_coarse(8);
   base.prolongator_storage = ValueStorage::double_precision;
-  long long previous = 0, thesis_nnz = 0;
+  base.aggregation_theta = 0.48;
+  long long previous = 0, thesis_nnz = 0, strict_nnz = 0;
   int aggregates = -1;
-  long long above_one = 0;
-  for (const double scale : {2.5, 1.5, 1.0, 0.5, 0.25, 0.1}) {
-    CAPTURE(scale);
+  for (const double theta : {0.9, 0.7, 0.48, 0.24, 0.12, 0.048}) {
+    CAPTURE(theta);
     SaAmg::Params prm = base;
-    prm.filter_scale = scale;
+    prm.theta = theta;
     SaAmg sa(prm);
     REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(sa.levels() >= 3);
@@ -480,13 +482,12 @@ TEST_CASE("sa: filter_scale moves the prolongator between the tentative one and 
     if (aggregates < 0) aggregates = fine.aggregates;
     CHECK(fine.aggregates == aggregates);
     CHECK(fine.nnz_p >= previous);
-    if (scale == 2.5) CHECK(fine.nnz_p == fine.rows - fine.special);  // 2.5 theta >= 1: the tentative pattern
-    if (scale == 1.5) above_one = fine.nnz_p;
-    if (scale == 1.0) {
+    if (theta == 0.9) strict_nnz = fine.nnz_p;
+    if (theta == 0.48) {
       thesis_nnz = fine.nnz_p;
-      CHECK(above_one < thesis_nnz);  // not vacuous: a higher threshold dropped couplings
+      CHECK(strict_nnz < thesis_nnz);  // not vacuous: a higher threshold dropped couplings
     }
-    if (scale == 0.1) CHECK(fine.nnz_p > thesis_nnz);  // not vacuous: the thesis' filter did drop couplings
+    if (theta == 0.048) CHECK(fine.nnz_p > thesis_nnz);  // and a lower one kept more
     previous = fine.nnz_p;
     checked_spd_map(sa, N);
   }
@@ -494,7 +495,7 @@ TEST_CASE("sa: filter_scale moves the prolongator between the tentative one and 
   Prefiltered free = prefiltered_cloth(13, Tessellation::irregular, Pins::none);
   SolveContext fctx{&free.sys.pins, &free.sys.x};
   SaAmg::Params all = base, unfiltered = base, thesis = base;
-  all.filter_scale = 1e-12;
+  all.theta = 1e-12;
   unfiltered.filtered_smoothing = false;
   SaAmg a(all), u(unfiltered), t(thesis);
   REQUIRE(a.setup(free.Ahat, fctx) == Status::success);
@@ -504,8 +505,19 @@ TEST_CASE("sa: filter_scale moves the prolongator between the tentative one and 
   const Eigen::MatrixXd Pa = a.prolongator(0), Pu = u.prolongator(0), Pt = t.prolongator(0);
   CHECK((Pa - Pu).norm() <= 1e-12 * Pu.norm());
   CHECK((Pt - Pu).norm() > 1e-3 * Pu.norm());  // the thesis' filter differs from no filter here
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.filter_scale = 0}), ConfigError);
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.filter_scale = -1}), ConfigError);
+  for (const double bad : {0.0, 1.0, -1.0}) {
+    CAPTURE(bad);
+    if (bad != 0.0) CHECK_THROWS_AS(SaAmg(SaAmg::Params{.aggregation_theta = bad}), ConfigError);
+    CHECK_THROWS_AS(SaAmg(SaAmg::Params{.theta = bad}), ConfigError);
+  }
+  // aggregation_theta = 0 is theta itself: the same hierarchy as naming it.
+  SaAmg::Params named = base;
+  named.aggregation_theta = 0.0;
+  named.theta = 0.48;
+  SaAmg z(named), b(base);
+  REQUIRE(z.setup(p.Ahat, ctx) == Status::success);
+  REQUIRE(b.setup(p.Ahat, ctx) == Status::success);
+  CHECK(z.prolongator(0) == b.prolongator(0));
 }
 
 TEST_CASE("sa: coarse operators are symmetric and positive definite with block size 6") {
@@ -633,7 +645,9 @@ TEST_CASE("sa: the W-cycle on the first coarse levels is a symmetric positive de
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
-  SaAmg v(small_coarse(8));
+  SaAmg::Params vp = small_coarse(8);
+  vp.cycle_gamma = 1;  // the V-cycle (the default)
+  SaAmg v(vp);
   REQUIRE(v.setup(p.Ahat, ctx) == Status::success);
   REQUIRE(v.levels() >= 3);
   const Eigen::MatrixXd Bv = assemble_preconditioner(v, N);
@@ -661,19 +675,21 @@ TEST_CASE("sa: the W-cycle on the first coarse levels is a symmetric positive de
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.cycle_gamma_levels = 0}), ConfigError);
 }
 
-TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle on cloth") {
+TEST_CASE("sa: the W-cycle needs no more PCG iterations than the V-cycle on cloth") {
   for (int m : {41, 81}) {
     CAPTURE(m);
     Prefiltered p = prefiltered_cloth(m, Tessellation::regular, Pins::boundary);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
-    SaAmg v(small_coarse(50));
-    SaAmg::Params prm = small_coarse(50);
+    SaAmg::Params vp = small_coarse(50), prm = small_coarse(50);
+    vp.cycle_gamma = 1;  // the default
     prm.cycle_gamma = 2;
+    prm.cycle_gamma_levels = 2;
+    SaAmg v(vp);
     SaAmg w(prm);
     REQUIRE(v.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(w.setup(p.Ahat, ctx) == Status::success);
     const PcgResult rv = pcg(p.Ahat, p.chat, v), rw = pcg(p.Ahat, p.chat, w);
-    MESSAGE("cloth m " << m << ": V-cycle " << rv.iterations << " iterations, W on level 1 " << rw.iterations);
+    MESSAGE("cloth m " << m << ": V-cycle " << rv.iterations << " iterations, W on levels 1-2 " << rw.iterations);
     CHECK(rv.converged);
     CHECK(rw.converged);
     CHECK(rw.iterations <= rv.iterations);
@@ -806,6 +822,7 @@ TEST_CASE("sa: a lent work vector gives the same cycle and the hierarchy owns no
     SolveContext ctx{&p.sys.pins, &p.sys.x};
     SaAmg::Params prm = small_coarse(20);
     prm.implicit_prolongator = implicit;
+    if (implicit) prm.prolongator_degree = 1;  // the implicit P is one smoothing step
     SaAmg sa(prm);
     REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(sa.levels() >= 3);
@@ -960,6 +977,7 @@ TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
         ep.prolongator_storage = ValueStorage::double_precision;  // the reference for the implicit one
         SaAmg::Params ip = ep;
         ip.implicit_prolongator = true;
+        ip.prolongator_degree = ep.prolongator_degree = 1;  // the implicit P is one smoothing step
         SaAmg e(ep), im(ip);
         REQUIRE(e.setup(A, ctx, view) == Status::success);
         REQUIRE(im.setup(A, ctx, view) == Status::success);
@@ -1168,7 +1186,7 @@ TEST_CASE("sa: smoother and strength parameter sweep") {
       SaAmg::Params prm;
       prm.chebyshev_lower = c.lower;
       prm.chebyshev_upper = c.upper;
-      prm.theta = c.theta;
+      prm.theta = prm.aggregation_theta = c.theta;
       prm.chebyshev_degree = c.degree;
       SaAmg sa(prm);
       auto now = [] { return std::chrono::steady_clock::now(); };
