@@ -10,8 +10,15 @@ keys of the binary these runs used.
 
     python3 tables.py campA/bench_linear.jsonl campB/bench_linear.jsonl x1M/bench_linear.jsonl
 """
-import json
+import importlib.util
 import sys
+from pathlib import Path
+
+# The JSONL reader of M3-fixed16/tables.py: {(example, tessellation, vertices): {solver: record}}.
+_spec = importlib.util.spec_from_file_location("m3_tables", Path(__file__).resolve().parent.parent / "M3-fixed16" / "tables.py")
+_m3 = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_m3)
+cases = _m3.cases
 
 FLAT = "sa_ppcg:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:theta=0.25:filter_scale=1.92"
 OLD = "sa_ppcg:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:theta=0.25"
@@ -23,14 +30,8 @@ def main(paths):
           "| Diag-PCG / it | CHOLMOD / it | memory vs Diag-PCG |")
     print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for path in paths:
-        rows = {}
-        for line in open(path):
-            d = json.loads(line)
-            if d.get("record") != "solver":
-                continue
-            c = d["case"]
-            rows.setdefault((c["tessellation"], c["example"], c["vertices"]), {})[d["solver"]] = d
-        for (tess, ex, n), by in sorted(rows.items()):
+        rows = cases(path)
+        for (ex, tess, n), by in sorted(rows.items(), key=lambda kv: (kv[0][1], kv[0][0], kv[0][2])):
             diag, chol = by.get("diag_pcg"), by.get("cholmod")
             for key, d in by.items():
                 if not key.startswith("sa_ppcg"):
