@@ -384,7 +384,7 @@ void multiply_add(const BsrView<R, C>& A, const T* val, const double* x, double*
 
 /// Column-wise listing of a BSR pattern: for block column j, the blocks
 /// (row[t], blk[t]) for t in [ptr[j], ptr[j+1]), by increasing row. Built once per
-/// pattern; gives a deterministic parallel A^T x and the Galerkin product.
+/// pattern for the Galerkin product (deterministic and parallel over coarse rows).
 struct TransposeIndex {
   std::vector<int> ptr{0}, row, blk;
 
@@ -406,23 +406,6 @@ struct TransposeIndex {
   }
   std::size_t memory_bytes() const { return (ptr.capacity() + row.capacity() + blk.capacity()) * sizeof(int); }
 };
-
-/// y = (A diag(s))^T x (y sized C * cols) through the transpose index T of A, for a
-/// rectangular pattern whose values are `val` (as `multiply_add`), with one scale per column
-/// or none (nullptr). Parallel over columns.
-template <int R, int C, class V>
-void spmv_transpose(const BsrView<R, C>& A, const TransposeIndex& T, const V* val, const double* x, double* y,
-                    const double* col_scale = nullptr) {
-  using VecC = Eigen::Matrix<double, C, 1>;
-#pragma omp parallel for schedule(static) if (A.cols > parallel_rows)
-  for (int j = 0; j < A.cols; ++j) {
-    VecC acc = VecC::Zero();
-    for (int t = T.ptr[j]; t < T.ptr[j + 1]; ++t)
-      acc.noalias() += value_block<R, C>(val, T.blk[t]).transpose() * Eigen::Map<const Eigen::Matrix<double, R, 1>>(x + R * T.row[t]);
-    if (col_scale) acc = acc.cwiseProduct(Eigen::Map<const VecC>(col_scale + C * j));
-    Eigen::Map<VecC>(y + C * j) = acc;
-  }
-}
 
 /// Index of the diagonal block of every block row (-1 if absent).
 template <int B>
