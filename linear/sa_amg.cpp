@@ -542,6 +542,28 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
   return out;
 }
 
+template <int B>
+std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
+  const int n = P.rows;
+  std::vector<int> first(P.cols, n), last(P.cols, -1);
+  for (int i = 0; i < n; ++i)
+    for (int k = P.row_ptr[i]; k < P.row_ptr[i + 1]; ++k) {
+      first[P.col[k]] = std::min(first[P.col[k]], i);
+      last[P.col[k]] = std::max(last[P.col[k]], i);
+    }
+  std::vector<int> reach(n + 1, -1);  // reach[r] = max last(J) over first(J) <= r
+  for (int J = 0; J < P.cols; ++J)
+    if (first[J] < n) reach[first[J]] = std::max(reach[first[J]], last[J]);
+  for (int r = 1; r < n; ++r) reach[r] = std::max(reach[r], reach[r - 1]);
+  std::vector<int> b{0};
+  while (b.back() < n) {
+    const int bk = b.back();
+    const int next = std::max(bk + min_rows, bk > 0 ? reach[bk - 1] + 1 : 0);
+    b.push_back(std::min(next, n));
+  }
+  return b;
+}
+
 #define WEFT_SA_INSTANTIATE(B)                                                                                        \
   template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
   template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&);   \
@@ -558,7 +580,8 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
                                       BlockMatrix<B, 6>&);                                                           \
   template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&,                  \
                                                    const std::vector<std::uint8_t>*, const Aggregates&, double,       \
-                                                   const BlockMatrix<B, 6>&);
+                                                   const BlockMatrix<B, 6>&);                                            \
+  template std::vector<int> restriction_chunks<B>(const BsrView<B, 6>&, int);
 WEFT_SA_INSTANTIATE(3)
 WEFT_SA_INSTANTIATE(6)
 #undef WEFT_SA_INSTANTIATE
@@ -774,35 +797,6 @@ void keep_inverses(Level<B>& L, const SaAmg::Params& prm) {
   }
 }
 
-/// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
-/// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
-/// one parity then share no column, and P^T r is a lock-free parallel scatter whose sums do
-/// not depend on the thread count (`restrict_rows`). With first(J) and last(J) the first and
-/// last rows of column J, b_{k+1} = max(b_k + min_rows, 1 + max{last(J) : first(J) < b_k}):
-/// a column starting in chunk k ends before b_{k+2}. A badly ordered mesh gives few, long
-/// chunks (less parallelism), never a wrong sum.
-template <int R>
-std::vector<int> restriction_chunks(const BsrView<R, 6>& P, int min_rows = 512) {
-  const int n = P.rows;
-  std::vector<int> first(P.cols, n), last(P.cols, -1);
-  for (int i = 0; i < n; ++i)
-    for (int k = P.row_ptr[i]; k < P.row_ptr[i + 1]; ++k) {
-      first[P.col[k]] = std::min(first[P.col[k]], i);
-      last[P.col[k]] = std::max(last[P.col[k]], i);
-    }
-  std::vector<int> reach(n + 1, -1);  // reach[r] = max last(J) over first(J) <= r
-  for (int J = 0; J < P.cols; ++J)
-    if (first[J] < n) reach[first[J]] = std::max(reach[first[J]], last[J]);
-  for (int r = 1; r < n; ++r) reach[r] = std::max(reach[r], reach[r - 1]);
-  std::vector<int> b{0};
-  while (b.back() < n) {
-    const int bk = b.back();
-    const int next = std::max(bk + min_rows, bk > 0 ? reach[bk - 1] + 1 : 0);
-    b.push_back(std::min(next, n));
-  }
-  return b;
-}
-
 double bound_of(const sa::LanczosResult& r, LambdaBound b) {
   switch (b) {
     case LambdaBound::ritz_factor: return 1.1 * r.ritz;
@@ -996,7 +990,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   if (L.implicit)
     L.rchunks = {};
   else
-    L.rchunks = restriction_chunks(L.P.view());
+    L.rchunks = sa::restriction_chunks<B>(L.P.view());
   st.restriction_chunks = static_cast<int>(L.rchunks.size()) - (L.implicit ? 0 : 1);
   if (prm.reuse == SaReuse::none) {
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
@@ -1286,7 +1280,7 @@ Vec<B> smoothing_row(const Level<B>& L, const BsrView<B, B>& A, int i, const dou
 }
 
 /// fc = (P diag(s))^T r by P's rows: each row i adds P_iJ^T r_i to fc_J. The even chunks of
-/// `restriction_chunks` scatter in parallel, then the odd ones, so every fc_J sums its terms
+/// `sa::restriction_chunks` scatter in parallel, then the odd ones, so every fc_J sums its terms
 /// in one fixed order whatever the thread count, with no transpose index of P.
 template <int R, class V>
 void restrict_rows(const BsrView<R, 6>& P, const std::vector<int>& chunks, const V* val, const double* r, double* fc,

@@ -197,6 +197,16 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
                                      const std::vector<std::uint8_t>* strong, const Aggregates& aggs, double omega,
                                      const BlockMatrix<B, 6>& P);
 
+/// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
+/// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
+/// one parity then share no column, and P^T r is a lock-free parallel scatter whose sums do
+/// not depend on the thread count (the cycle's restriction). With first(J) and last(J) the
+/// first and last rows of column J, b_{k+1} = max(b_k + min_rows, 1 + max{last(J) : first(J)
+/// < b_k}): a column starting in chunk k ends before b_{k+2}. A badly ordered mesh gives few,
+/// long chunks (less parallelism), never a wrong sum.
+template <int B>
+std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows = 512);
+
 }  // namespace sa
 
 /// Smoothed aggregation multigrid V(1,1) preconditioner (spec 04 §4-6). `apply` is const

@@ -897,6 +897,59 @@ BlockCsr renumbered(const BlockCsr& A, const std::vector<int>& perm) {
 
 }  // namespace
 
+TEST_CASE("sa: restriction chunks cover the rows and hold every column within two consecutive chunks") {
+  // The property that makes the parity-class scatter race-free, on banded patterns, random
+  // ones and a column that spans every row; the chunks are at least min_rows long but the last.
+  std::mt19937 rng(3);
+  auto check = [&](int rows, int cols, const std::vector<std::vector<int>>& by_row, int min_rows) {
+    std::vector<int> ptr{0}, col;
+    for (const auto& r : by_row) {
+      col.insert(col.end(), r.begin(), r.end());
+      ptr.push_back(static_cast<int>(col.size()));
+    }
+    const std::vector<double> val(18 * col.size(), 1.0);
+    const BsrView<3, 6> P{rows, cols, ptr.data(), col.data(), val.data()};
+    const std::vector<int> b = sa::restriction_chunks<3>(P, min_rows);
+    REQUIRE(b.size() >= 2);
+    CHECK(b.front() == 0);
+    CHECK(b.back() == rows);
+    std::vector<int> chunk_of(rows);
+    for (size_t c = 0; c + 1 < b.size(); ++c) {
+      CHECK(b[c] < b[c + 1]);
+      if (c + 2 < b.size()) CHECK(b[c + 1] - b[c] >= min_rows);
+      for (int i = b[c]; i < b[c + 1]; ++i) chunk_of[i] = static_cast<int>(c);
+    }
+    std::vector<int> lo(cols, 1 << 30), hi(cols, -1);
+    for (int i = 0; i < rows; ++i)
+      for (int J : by_row[i]) lo[J] = std::min(lo[J], chunk_of[i]), hi[J] = std::max(hi[J], chunk_of[i]);
+    int violations = 0;
+    for (int J = 0; J < cols; ++J) violations += hi[J] >= 0 && hi[J] - lo[J] > 1;
+    CHECK(violations == 0);
+    return static_cast<int>(b.size()) - 1;
+  };
+  // Banded: row i touches the columns near i / 9 (a numbered sheet), up to 5 columns.
+  const int rows = 20000, cols = rows / 9 + 1;
+  std::vector<std::vector<int>> banded(rows), random(rows), spanning(rows);
+  for (int i = 0; i < rows; ++i) {
+    for (int J = std::max(0, i / 9 - 2); J <= std::min(cols - 1, i / 9 + 2); ++J) banded[i].push_back(J);
+    std::set<int> r;
+    for (int q = 0; q < 3; ++q) r.insert(std::uniform_int_distribution<int>(0, cols - 1)(rng));
+    random[i].assign(r.begin(), r.end());
+    spanning[i] = banded[i];
+    if (i == 0 || i == rows - 1) {  // column 0 also holds the last row
+      spanning[i].insert(spanning[i].begin(), 0);
+      spanning[i].erase(std::unique(spanning[i].begin(), spanning[i].end()), spanning[i].end());
+    }
+  }
+  for (const int min_rows : {1, 64, 512}) {
+    CAPTURE(min_rows);
+    const int nb = check(rows, cols, banded, min_rows);
+    CHECK(nb >= rows / std::max(min_rows, 64) / 2);  // not vacuous: a banded pattern parallelises
+    CHECK(check(rows, cols, random, min_rows) <= 3);  // every column spans about all rows
+    CHECK(check(rows, cols, spanning, min_rows) <= 2);
+  }
+}
+
 TEST_CASE("sa: the row-chunked restriction is P^T on well and randomly numbered meshes") {
   // The cycle restricts by P's rows in chunks whose parity classes share no coarse column.
   // Randomly numbered vertices make every aggregate span the whole row range (few, long
