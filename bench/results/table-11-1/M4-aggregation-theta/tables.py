@@ -22,7 +22,7 @@ cases = _m3.cases
 
 FLAT = "sa_ppcg:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:theta=0.25:filter_scale=1.92"
 OLD = "sa_ppcg:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:theta=0.25"
-NAMES = {"sa_ppcg": "default", FLAT: "flat", OLD: "degree 2 + W, theta 0.25"}
+NAMES = {"sa_ppcg": "default", FLAT: "flat", "sa_ppcg_flat": "flat", OLD: "degree 2 + W, theta 0.25"}
 
 
 def main(paths):
