@@ -551,7 +551,7 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
       first[P.col[k]] = std::min(first[P.col[k]], i);
       last[P.col[k]] = std::max(last[P.col[k]], i);
     }
-  std::vector<int> reach(n + 1, -1);  // reach[r] = max last(J) over first(J) <= r
+  std::vector<int> reach(n, -1);  // reach[r] = max last(J) over first(J) <= r
   for (int J = 0; J < P.cols; ++J)
     if (first[J] < n) reach[first[J]] = std::max(reach[first[J]], last[J]);
   for (int r = 1; r < n; ++r) reach[r] = std::max(reach[r], reach[r - 1]);
@@ -620,7 +620,6 @@ struct Level {
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
   std::vector<double> Pscale;    // one scale per coarse dof
-  TransposeIndex PT;             // setup only (Galerkin product, fixed16 scales)
   std::vector<int> rchunks;      // row chunks of the restriction P^T r (`restriction_chunks`)
   std::vector<std::uint8_t> dummy;  // per coarse dof
   int deficient = 0;
@@ -648,7 +647,7 @@ struct Level {
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
-                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + PT.memory_bytes() + vb(rchunks) + vb(dummy);
+                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + vb(rchunks) + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -740,9 +739,10 @@ inline int round_to_int(double x) { return static_cast<int>(x + std::copysign(0.
 
 /// Rounds P's values to the storage the cycle will read them from (ValueStorage); fixed16
 /// also fills L.Pq and the per-column scales L.Pscale (the double values, kept for the
-/// Galerkin product, are then exactly Pq diag(Pscale)). Applied before the Galerkin product.
+/// Galerkin product, are then exactly Pq diag(Pscale)). Applied before the Galerkin product;
+/// T is P's transpose index.
 template <int B>
-void round_to_storage(Level<B>& L, ValueStorage storage) {
+void round_to_storage(Level<B>& L, const TransposeIndex& T, ValueStorage storage) {
   std::vector<double>& v = L.P.values();
   if (storage != ValueStorage::fixed16) {
     L.Pscale = {};
@@ -759,7 +759,7 @@ void round_to_storage(Level<B>& L, ValueStorage storage) {
   std::vector<double>& s = L.Pscale;
   const int cols = L.P.cols();
   s.assign(static_cast<std::size_t>(6) * cols, 0.0);
-  const TransposeIndex& T = L.PT;  // built from this pattern: parallel over block columns
+  // Parallel over block columns through T.
 #pragma omp parallel for schedule(static) if (cols > parallel_rows)
   for (int J = 0; J < cols; ++J)
     for (int t = T.ptr[J]; t < T.ptr[J + 1]; ++t)
@@ -869,7 +869,6 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       L.Pf = {};
       L.Pq = {};
       L.Pscale = {};
-      L.PT = {};
       make_coarsest(L, prm);
       keep_inverses(L, prm);
       ctx.stats.push_back(st);
@@ -900,6 +899,9 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   const double omega = 4.0 / (3.0 * L.lambda);
   L.implicit = prm.implicit_prolongator && index == 0;
   const int degree = index < prm.prolongator_degree_levels ? prm.prolongator_degree : 1;
+  // P's transpose index, for the fixed16 scales and the Galerkin product only (the cycle
+  // restricts by P's rows): built for each setup, freed after the Galerkin product.
+  TransposeIndex PT;
   {
     ScopedTimer t(T.smoothing);
     // An implicit P is formed here for the Galerkin product and freed after it.
@@ -909,9 +911,9 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
-    if (!reuse || L.PT.ptr.size() <= 1 || degree > 1) L.PT.build(L.P.view());
+    PT.build(L.P.view());
     if (!L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
-      round_to_storage(L, prm.prolongator_storage);
+      round_to_storage(L, PT, prm.prolongator_storage);
   }
   st.nnz_p = L.P.nnz();
   if (L.implicit) {
@@ -948,9 +950,10 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   {
     ScopedTimer t(T.galerkin);
     if (!reuse) {
-      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), L.PT, prm.single_coarse_operators);
+      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), PT, prm.single_coarse_operators);
     }
-    Galerkin<B, 6>::numeric(A, L.P.view(), L.PT, C.own);  // exactly symmetric
+    Galerkin<B, 6>::numeric(A, L.P.view(), PT, C.own);  // exactly symmetric
+    PT = {};  // freed before the levels below are built
     // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
     // diagonal so A_c stays SPD; they are decoupled from everything else.
     double sum = 0;
@@ -975,7 +978,6 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   L.Pf = {};
   if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
     L.P.clear();
-    L.PT = {};
     L.Pq = {};
     L.Pscale = {};
   } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
@@ -984,14 +986,10 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
     std::vector<double>().swap(L.P.values());
   }
-  // The cycle restricts by P's rows (`restrict_rows`): the transpose index served the
-  // Galerkin product and the fixed16 scales only (8 bytes per block of P).
-  L.PT = {};
-  if (L.implicit)
-    L.rchunks = {};
-  else
-    L.rchunks = sa::restriction_chunks<B>(L.P.view());
-  st.restriction_chunks = static_cast<int>(L.rchunks.size()) - (L.implicit ? 0 : 1);
+  // The cycle restricts by P's rows (`restrict_rows`), with no transpose index (8 bytes per
+  // block of P).
+  L.rchunks = L.implicit ? std::vector<int>{} : sa::restriction_chunks<B>(L.P.view());
+  st.restriction_chunks = std::max(0, static_cast<int>(L.rchunks.size()) - 1);
   if (prm.reuse == SaReuse::none) {
     // Nothing reads the coarsening structure again before the next setup rebuilds it: give
     // it back now (only `aggregates` refreshes values on the kept structure).
@@ -1112,12 +1110,10 @@ void with_inverses(const Level<B>& L, F&& f) {
 
 /// D_i^-1 r with D_i the diagonal block of row i as the operator reads it (through the
 /// filters): by the adjugate when Sylvester's criterion shows D_i SPD (one division, no
-/// square root), else as `invert_block_diagonal` inverts it (Cholesky, LU, zero if
-/// singular).
+/// square root), else by LU, zero if singular or absent (as `invert_block_diagonal`).
 inline Vec<3> solve_diagonal(const BsrView<3, 3>& A, int i, const Vec<3>& r) {
-  int kd = A.row_ptr[i];
-  while (kd < A.row_ptr[i + 1] && A.col[kd] != i) ++kd;
-  if (kd == A.row_ptr[i + 1]) return Vec<3>::Zero();
+  const int kd = find_block(A, i, i);
+  if (kd < 0) return Vec<3>::Zero();
   const Mat<3> D = A.block(i, kd);
   const double c00 = D(1, 1) * D(2, 2) - D(1, 2) * D(2, 1), c01 = D(1, 2) * D(2, 0) - D(1, 0) * D(2, 2),
                c02 = D(1, 0) * D(2, 1) - D(1, 1) * D(2, 0);

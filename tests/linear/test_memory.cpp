@@ -174,9 +174,9 @@ TEST_SUITE("linear") {
     CHECK(own <= 0.75 * a);
     CHECK((a + own) / (a + diag) <= 1.5);
     CHECK(sa.rep.operator_complexity < 2.3);
-    // With the implicit fine prolongator: the same iterations, and less memory than a stored
-    // single-precision P. The default fixed16 P, restricted by rows with no transpose index,
-    // takes about as much as the implicit one.
+    // With the implicit fine prolongator: the same iterations, less memory than the default
+    // fixed16 P, if only just now that the stored P keeps no transpose index (4.41 against
+    // 4.42 MB), and less than a stored single-precision P.
     SaPpcg::Params ip;
     ip.preconditioner.implicit_prolongator = true;
     const Solved im = solve<SaPpcg>(sys.A, sys.b, c, sys.x, ip);
@@ -191,6 +191,7 @@ TEST_SUITE("linear") {
     REQUIRE(si.rep.status == Status::success);
     const double own_s = static_cast<double>(si.rep.memory_bytes);
     MESSAGE("single-precision P: SA+PPCG owns ", own_s / 1e6, " MB");
+    CHECK(own_i < own);
     CHECK(own_i < own_s);
     CHECK(own < own_s);
     CHECK((a + own_i) / (a + diag) <= 1.5);

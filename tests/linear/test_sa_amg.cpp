@@ -423,9 +423,7 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
-  SaAmg::Params one_step = small_coarse(8);
-  one_step.prolongator_degree = 1;  // the thesis' (the default)
-  SaAmg one(one_step);
+  SaAmg one(small_coarse(8));
   REQUIRE(one.setup(p.Ahat, ctx) == Status::success);
   for (int levels : {1, 2}) {
     CAPTURE(levels);
@@ -645,9 +643,7 @@ TEST_CASE("sa: the W-cycle on the first coarse levels is a symmetric positive de
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::two_sides);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
-  SaAmg::Params vp = small_coarse(8);
-  vp.cycle_gamma = 1;  // the V-cycle (the default)
-  SaAmg v(vp);
+  SaAmg v(small_coarse(8));
   REQUIRE(v.setup(p.Ahat, ctx) == Status::success);
   REQUIRE(v.levels() >= 3);
   const Eigen::MatrixXd Bv = assemble_preconditioner(v, N);
@@ -675,21 +671,19 @@ TEST_CASE("sa: the W-cycle on the first coarse levels is a symmetric positive de
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.cycle_gamma_levels = 0}), ConfigError);
 }
 
-TEST_CASE("sa: the W-cycle needs no more PCG iterations than the V-cycle on cloth") {
+TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle on cloth") {
   for (int m : {41, 81}) {
     CAPTURE(m);
     Prefiltered p = prefiltered_cloth(m, Tessellation::regular, Pins::boundary);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
-    SaAmg::Params vp = small_coarse(50), prm = small_coarse(50);
-    vp.cycle_gamma = 1;  // the default
+    SaAmg v(small_coarse(50));
+    SaAmg::Params prm = small_coarse(50);
     prm.cycle_gamma = 2;
-    prm.cycle_gamma_levels = 2;
-    SaAmg v(vp);
     SaAmg w(prm);
     REQUIRE(v.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(w.setup(p.Ahat, ctx) == Status::success);
     const PcgResult rv = pcg(p.Ahat, p.chat, v), rw = pcg(p.Ahat, p.chat, w);
-    MESSAGE("cloth m " << m << ": V-cycle " << rv.iterations << " iterations, W on levels 1-2 " << rw.iterations);
+    MESSAGE("cloth m " << m << ": V-cycle " << rv.iterations << " iterations, W on level 1 " << rw.iterations);
     CHECK(rv.converged);
     CHECK(rw.converged);
     CHECK(rw.iterations <= rv.iterations);
@@ -822,7 +816,6 @@ TEST_CASE("sa: a lent work vector gives the same cycle and the hierarchy owns no
     SolveContext ctx{&p.sys.pins, &p.sys.x};
     SaAmg::Params prm = small_coarse(20);
     prm.implicit_prolongator = implicit;
-    if (implicit) prm.prolongator_degree = 1;  // the implicit P is one smoothing step
     SaAmg sa(prm);
     REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(sa.levels() >= 3);
@@ -1030,7 +1023,6 @@ TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
         ep.prolongator_storage = ValueStorage::double_precision;  // the reference for the implicit one
         SaAmg::Params ip = ep;
         ip.implicit_prolongator = true;
-        ip.prolongator_degree = ep.prolongator_degree = 1;  // the implicit P is one smoothing step
         SaAmg e(ep), im(ip);
         REQUIRE(e.setup(A, ctx, view) == Status::success);
         REQUIRE(im.setup(A, ctx, view) == Status::success);
@@ -1239,7 +1231,7 @@ TEST_CASE("sa: smoother and strength parameter sweep") {
       SaAmg::Params prm;
       prm.chebyshev_lower = c.lower;
       prm.chebyshev_upper = c.upper;
-      prm.theta = prm.aggregation_theta = c.theta;
+      prm.theta = c.theta;
       prm.chebyshev_degree = c.degree;
       SaAmg sa(prm);
       auto now = [] { return std::chrono::steady_clock::now(); };
