@@ -99,18 +99,22 @@ Eigen::MatrixXd BlockCsr::to_dense() const {
   return d;
 }
 
-Colouring::Colouring(std::span<const int> ptr, std::span<const int> ids, int num_vertices) {
+Colouring::Colouring(std::span<const int> ptr, std::span<const int> ids, int num_vertices, int chunk) {
+  WEFT_ASSERT(chunk >= 1, "chunk size {} must be positive", chunk);
   const int n = static_cast<int>(ptr.size()) - 1;
-  // used[v * words + w]: bit b set when vertex v already belongs to an element of colour
+  const int nq = (n + chunk - 1) / chunk;  // chunk q holds elements [q chunk, min(n, (q + 1) chunk))
+  auto first = [&](int q) { return ptr[static_cast<size_t>(q) * chunk]; };
+  auto last = [&](int q) { return ptr[std::min(n, (q + 1) * chunk)]; };
+  // used[v * words + w]: bit b set when vertex v already belongs to a chunk of colour
   // 64 w + b. The word count grows if some vertex needs more than 64 colours.
   int words = 1;
   std::vector<std::uint64_t> used(num_vertices, 0);
-  std::vector<int> colour(n);
+  std::vector<int> colour(nq);
   int num_colours = 0;
-  for (int s = 0; s < n; ++s) {
+  for (int q = 0; q < nq; ++q) {
     int c = -1;
     for (int w = 0; c < 0; ++w) {
-      if (w == words) {  // every colour so far is taken around this element: widen
+      if (w == words) {  // every colour so far is taken around this chunk: widen
         std::vector<std::uint64_t> wider(static_cast<size_t>(num_vertices) * (words + 1), 0);
         for (int v = 0; v < num_vertices; ++v)
           std::copy_n(used.begin() + static_cast<size_t>(v) * words, words, wider.begin() + static_cast<size_t>(v) * (words + 1));
@@ -118,25 +122,34 @@ Colouring::Colouring(std::span<const int> ptr, std::span<const int> ids, int num
         ++words;
       }
       std::uint64_t taken = 0;
-      for (int q = ptr[s]; q < ptr[s + 1]; ++q) taken |= used[static_cast<size_t>(ids[q]) * words + w];
+      for (int i = first(q); i < last(q); ++i) taken |= used[static_cast<size_t>(ids[i]) * words + w];
       if (~taken) c = 64 * w + std::countr_one(taken);
     }
-    for (int q = ptr[s]; q < ptr[s + 1]; ++q) used[static_cast<size_t>(ids[q]) * words + c / 64] |= std::uint64_t{1} << (c % 64);
-    colour[s] = c;
+    for (int i = first(q); i < last(q); ++i) used[static_cast<size_t>(ids[i]) * words + c / 64] |= std::uint64_t{1} << (c % 64);
+    colour[q] = c;
     num_colours = std::max(num_colours, c + 1);
   }
+  // Chunks by colour (ascending within a colour), elements by chunk.
   ptr_.assign(num_colours + 1, 0);
-  for (int s = 0; s < n; ++s) ++ptr_[colour[s] + 1];
+  for (int q = 0; q < nq; ++q) ++ptr_[colour[q] + 1];
   for (int c = 0; c < num_colours; ++c) ptr_[c + 1] += ptr_[c];
-  order_.resize(n);
+  std::vector<int> chunks(nq);
   std::vector<int> fill(ptr_.begin(), ptr_.end() - 1);
-  for (int s = 0; s < n; ++s) order_[fill[colour[s]]++] = s;
+  for (int q = 0; q < nq; ++q) chunks[fill[colour[q]]++] = q;
+  order_.resize(n);
+  chunk_ptr_.assign(nq + 1, 0);
+  int at = 0;
+  for (int k = 0; k < nq; ++k) {
+    const int q = chunks[k];
+    for (int s = q * chunk; s < std::min(n, (q + 1) * chunk); ++s) order_[at++] = s;
+    chunk_ptr_[k + 1] = at;
+  }
 }
 
-Colouring Colouring::uniform(std::span<const int> ids, int stencil, int num_vertices) {
+Colouring Colouring::uniform(std::span<const int> ids, int stencil, int num_vertices, int chunk) {
   std::vector<int> ptr(ids.size() / stencil + 1);
   for (size_t s = 0; s < ptr.size(); ++s) ptr[s] = static_cast<int>(s) * stencil;
-  return Colouring(ptr, ids, num_vertices);
+  return Colouring(ptr, ids, num_vertices, chunk);
 }
 
 ElementBuffer::Slot::Slot(ElementBuffer& buf, int group, int e) : buf_(buf) {

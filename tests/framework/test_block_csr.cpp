@@ -18,8 +18,8 @@ struct Fixture {
   AssemblyPlan plan;
   int g3 = -1, g4 = -1;
   std::vector<int> tri, hinge;
-  Fixture() {
-    const auto m = make_rectangle({1, 1}, {7, 6}, Tessellation::irregular, 5);
+  explicit Fixture(int nx = 7, int ny = 6) {
+    const auto m = make_rectangle({1, 1}, {nx, ny}, Tessellation::irregular, 5);
     mesh = TriangleMesh(m.V, m.F);
     for (int f = 0; f < mesh.num_faces(); ++f)
       for (int k = 0; k < 3; ++k) tri.push_back(mesh.faces()(f, k));
@@ -159,37 +159,70 @@ TEST_SUITE("framework") {
     CHECK((Eigen::MatrixXd(lower.selfadjointView<Eigen::Lower>()) - full).norm() <= 1e-14 * full.norm());
   }
 
-  TEST_CASE("Colouring: every element once and no shared vertex within a colour") {
-    Fixture fx;
-    for (auto [ids, k] : {std::pair{&fx.tri, 3}, std::pair{&fx.hinge, 4}}) {
-      const Colouring c = Colouring::uniform(*ids, k, fx.mesh.num_vertices());
-      const int ne = static_cast<int>(ids->size()) / k;
-      REQUIRE(c.num_elements() == ne);
-      CHECK(c.num_colours() >= 2);   // adjacent elements exist, so one colour cannot do
-      CHECK(c.num_colours() <= 16);  // greedy stays near the maximum vertex degree
-      std::vector<int> seen(ne, 0);
-      for (int col = 0; col < c.num_colours(); ++col) {
-        std::vector<int> owner(fx.mesh.num_vertices(), -1);
-        for (int e : c.colour(col)) {
-          ++seen[e];
-          for (int a = 0; a < k; ++a) {
-            const int v = (*ids)[e * k + a];
-            CHECK(owner[v] == -1);
-            owner[v] = e;
+  TEST_CASE("Colouring: every element once and no vertex shared by two chunks of one colour") {
+    Fixture fx(20, 16);
+    for (auto [ids, k] : {std::pair{&fx.tri, 3}, std::pair{&fx.hinge, 4}})
+      for (int chunk : {1, 2, 5, Colouring::default_chunk}) {
+        CAPTURE(k);
+        CAPTURE(chunk);
+        const Colouring c = Colouring::uniform(*ids, k, fx.mesh.num_vertices(), chunk);
+        const int ne = static_cast<int>(ids->size()) / k;
+        REQUIRE(c.num_elements() == ne);
+        REQUIRE(ne > 2 * chunk);      // guard: several chunks, so the colouring has work to do
+        CHECK(c.num_colours() >= 2);  // adjacent chunks exist, so one colour cannot do
+        if (chunk == 1) {  // greedy first-fit: at most one more colour than an element has neighbours
+          std::vector<std::vector<int>> at(fx.mesh.num_vertices());
+          for (int e = 0; e < ne; ++e)
+            for (int a = 0; a < k; ++a) at[(*ids)[e * k + a]].push_back(e);
+          size_t most = 0;
+          for (int e = 0; e < ne; ++e) {
+            std::vector<int> nb;
+            for (int a = 0; a < k; ++a) nb.insert(nb.end(), at[(*ids)[e * k + a]].begin(), at[(*ids)[e * k + a]].end());
+            std::sort(nb.begin(), nb.end());
+            most = std::max(most, static_cast<size_t>(std::unique(nb.begin(), nb.end()) - nb.begin()) - 1);
           }
+          CHECK(static_cast<size_t>(c.num_colours()) <= most + 1);
         }
+        std::vector<int> seen(ne, 0);
+        for (int col = 0; col < c.num_colours(); ++col) {
+          CHECK(c.end_chunk(col) > c.first_chunk(col));
+          std::vector<int> owner(fx.mesh.num_vertices(), -1);  // the chunk that holds the vertex
+          size_t in_colour = 0;
+          for (int q = c.first_chunk(col); q < c.end_chunk(col); ++q) {
+            const std::span<const int> el = c.chunk(q);
+            CHECK(static_cast<int>(el.size()) <= chunk);
+            CHECK(std::is_sorted(el.begin(), el.end()));
+            CHECK(el.back() - el.front() == static_cast<int>(el.size()) - 1);  // consecutive elements
+            in_colour += el.size();
+            for (int e : el) {
+              ++seen[e];
+              for (int a = 0; a < k; ++a) {
+                const int v = (*ids)[e * k + a];
+                CHECK((owner[v] == -1 || owner[v] == q));
+                owner[v] = q;
+              }
+            }
+          }
+          CHECK(in_colour == c.colour(col).size());
+        }
+        CHECK(std::all_of(seen.begin(), seen.end(), [](int n) { return n == 1; }));
       }
-      CHECK(std::all_of(seen.begin(), seen.end(), [](int n) { return n == 1; }));
+    // More than 64 colours: 70 elements (chunk 1) or chunks (chunk 3) that all share vertex 0.
+    for (int chunk : {1, 3}) {
+      std::vector<int> fan;
+      for (int e = 0; e < 70 * chunk; ++e) fan.insert(fan.end(), {0, e + 1});
+      const Colouring wide = Colouring::uniform(fan, 2, 70 * chunk + 1, chunk);
+      CHECK(wide.num_colours() == 70);
     }
-    // More than 64 colours: 70 elements that all share vertex 0.
-    std::vector<int> fan;
-    for (int e = 0; e < 70; ++e) fan.insert(fan.end(), {0, e + 1});
-    const Colouring wide = Colouring::uniform(fan, 2, 71);
-    CHECK(wide.num_colours() == 70);
   }
 
   TEST_CASE("BlockCsr: direct assembly equals the stored one and is deterministic across threads") {
-    Fixture fx;
+    // 60 x 50 cells: colours of more than 256 elements in many chunks, so that the direct
+    // assembly runs its chunks in parallel.
+    Fixture fx(60, 50);
+    const Colouring& hc = fx.plan.make_buffer().colouring(fx.g4);
+    REQUIRE(hc.colour(0).size() >= 256);
+    REQUIRE(hc.end_chunk(0) - hc.first_chunk(0) >= 8);
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(-1, 1);
     std::vector<Eigen::MatrixXd> tri(fx.tri.size() / 3), hin(fx.hinge.size() / 4);
