@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Quick start 2: install, build, and run the test suite (the fast default suite).
-#   --slow      the long, labelled suite instead (CI runs it in a separate job)
+#   --slow      the long, labelled suite instead (.ci/run runs it after the other two)
 #   --backends  install and enable the optional back ends (CHOLMOD, PETSc + MPI), build
 #               them in build/backends and run their tests
 set -euo pipefail

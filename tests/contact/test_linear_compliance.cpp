@@ -305,17 +305,19 @@ TEST_SUITE("slow") {
     const StackRun gs = stack_run("gauss_seidel");
     CHECK(gs.converged * 4 < gs.solves);  // else the Newton case below shows nothing
     CHECK(gs.max_residual <= 1e4 * tol);
-    // Semismooth Newton after the sweeps: most solves converge, and the others end within a
-    // few times the tolerance (measured: 31 of 48; the others stall at 1.1e-6 to 5.8e-6 m/s
-    // on the 202-contact resting stack, where most Newton steps are Levenberg-Marquardt
-    // fallbacks: a near-singular Jacobian, redundant vertex-face and edge-edge contacts the
-    // likely cause, not verified).
+    // Semismooth Newton after the sweeps: most solves converge, and the others end within
+    // tens of times the tolerance. They stall on the 202-contact resting stack, where most
+    // Newton steps are Levenberg-Marquardt fallbacks: a near-singular Jacobian, redundant
+    // vertex-face and edge-edge contacts the likely cause, not verified. Where they stall
+    // follows the trajectory's round-off: over six orders of the matrix assembly (colouring
+    // chunks of 1 to 64 elements, a temporary build) 25-33 of 48 solves converged and the
+    // largest residual was 4.2e-6 to 1.9e-5 m/s, against 1.7e-3 for plain Gauss-Seidel.
     const StackRun nt = stack_run("newton");
     CHECK(nt.solves > 0);
     CHECK(nt.newton > 0);
     CHECK(2 * nt.converged > nt.solves);
     CHECK(nt.converged >= 5 * std::max(gs.converged, 1));
-    CHECK(nt.max_residual <= 10 * tol);
-    CHECK(nt.max_residual <= 0.01 * gs.max_residual);
+    CHECK(nt.max_residual <= 30 * tol);
+    CHECK(nt.max_residual <= 0.02 * gs.max_residual);
   }
 }
