@@ -129,21 +129,15 @@ Colouring::Colouring(std::span<const int> ptr, std::span<const int> ids, int num
     colour[q] = c;
     num_colours = std::max(num_colours, c + 1);
   }
-  // Chunks by colour (ascending within a colour), elements by chunk.
+  // Chunks by colour, ascending within a colour.
+  n_ = n;
+  chunk_ = chunk;
   ptr_.assign(num_colours + 1, 0);
   for (int q = 0; q < nq; ++q) ++ptr_[colour[q] + 1];
   for (int c = 0; c < num_colours; ++c) ptr_[c + 1] += ptr_[c];
-  std::vector<int> chunks(nq);
+  chunks_.resize(nq);
   std::vector<int> fill(ptr_.begin(), ptr_.end() - 1);
-  for (int q = 0; q < nq; ++q) chunks[fill[colour[q]]++] = q;
-  order_.resize(n);
-  chunk_ptr_.assign(nq + 1, 0);
-  int at = 0;
-  for (int k = 0; k < nq; ++k) {
-    const int q = chunks[k];
-    for (int s = q * chunk; s < std::min(n, (q + 1) * chunk); ++s) order_[at++] = s;
-    chunk_ptr_[k + 1] = at;
-  }
+  for (int q = 0; q < nq; ++q) chunks_[fill[colour[q]]++] = q;
 }
 
 Colouring Colouring::uniform(std::span<const int> ids, int stencil, int num_vertices, int chunk) {

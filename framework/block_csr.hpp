@@ -15,8 +15,10 @@
 #include <omp.h>
 #endif
 
+#include <algorithm>
 #include <array>
 #include <memory>
+#include <ranges>
 #include <span>
 #include <vector>
 
@@ -90,22 +92,27 @@ class Colouring {
   Colouring(std::span<const int> ptr, std::span<const int> ids, int num_vertices, int chunk = default_chunk);
   /// Elements of a fixed stencil size k: element s touches ids[k s .. k s + k).
   static Colouring uniform(std::span<const int> ids, int stencil, int num_vertices, int chunk = default_chunk);
-  int num_elements() const { return static_cast<int>(order_.size()); }
+  int num_elements() const { return n_; }
   int num_colours() const { return static_cast<int>(ptr_.size()) - 1; }
-  /// The chunks of colour c: indices into `chunk`.
+  int chunk_size() const { return chunk_; }
+  /// The chunks of colour c: k in [first_chunk(c), end_chunk(c)), for `chunk(k)`.
   int first_chunk(int c) const { return ptr_[c]; }
   int end_chunk(int c) const { return ptr_[c + 1]; }
-  /// The elements of chunk q, ascending.
-  std::span<const int> chunk(int q) const {
-    return {order_.data() + chunk_ptr_[q], static_cast<size_t>(chunk_ptr_[q + 1] - chunk_ptr_[q])};
+  /// The elements of the k-th chunk in colour order: consecutive, ascending.
+  std::ranges::iota_view<int, int> chunk(int k) const {
+    const int q = chunks_[k];
+    return std::views::iota(q * chunk_, std::min(n_, (q + 1) * chunk_));
   }
-  /// The elements of colour c, chunk after chunk.
-  std::span<const int> colour(int c) const {
-    return {order_.data() + chunk_ptr_[ptr_[c]], static_cast<size_t>(chunk_ptr_[ptr_[c + 1]] - chunk_ptr_[ptr_[c]])};
+  /// How many elements colour c holds.
+  int colour_size(int c) const {
+    int s = 0;
+    for (int k = first_chunk(c); k < end_chunk(c); ++k) s += static_cast<int>(chunk(k).size());
+    return s;
   }
 
  private:
-  std::vector<int> order_, chunk_ptr_{0}, ptr_{0};
+  int n_ = 0, chunk_ = 1;
+  std::vector<int> chunks_, ptr_{0};  // chunk ids by colour; colour c: chunks_[ptr_[c] .. ptr_[c+1])
 };
 
 /// How element Hessians reach the matrix.
@@ -189,7 +196,7 @@ class ElementBuffer {
   /// Zero every local matrix of group g (stored mode; nothing to do in direct mode).
   void zero_group(int group);
   int stencil_size(int group) const { return maps_->stencil[group]; }
-  /// The plan's colouring of group g (elements sharing no vertex within a colour).
+  /// The plan's colouring of group g (chunks of one colour share no vertex).
   const Colouring& colouring(int group) const { return maps_->colouring[group]; }
 
   /// Call f(e) for every element of `c`: in parallel, and in direct mode one colour at a
@@ -206,7 +213,7 @@ class ElementBuffer {
       auto chunk = [&f, &c, q0](int q) {
         for (int e : c.chunk(q0 + q)) f(e);
       };
-      if (c.colour(k).size() >= 256 && nq > 1)
+      if (nq > 1 && nq * c.chunk_size() >= 256)
         parallel_range(nq, chunk, 1);
       else
         for (int q = 0; q < nq; ++q) chunk(q);
