@@ -9,6 +9,7 @@ simulated second with no edge stretched beyond 50 % and touched the wall (contac
 """
 import csv
 import os
+import re
 import sys
 
 METHODS = ("rods_impulse", "rods_linear", "rods_adonis")
@@ -40,7 +41,7 @@ def main(dirs):
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|")
     for d in dirs:
         rows = list(csv.DictReader(open(os.path.join(d, "stability.csv"))))
-        v = int(d.rstrip("/").split("v")[-1])
+        v = int(re.search(r"v(\d+)", os.path.basename(d.rstrip("/"))).group(1))
         for speed in sorted({r["value"] for r in rows}, key=float):
             h = {m: hstar(rows, m, speed) for m in METHODS}
             a, i, l = h["rods_adonis"][0], h["rods_impulse"][0], h["rods_linear"][0]
