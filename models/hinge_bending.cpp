@@ -111,10 +111,29 @@ Mat12 hess_theta(const HingeFrames& f) {
   return 0.5 * (H + H.transpose());
 }
 
+namespace {
+/// Orthonormal basis of the complement of the translations in R^12: Q = B (x) I3 with the
+/// Hadamard columns B = [1 1 -1 -1; 1 -1 1 -1; 1 -1 -1 1]^T / 2, orthogonal to (1, 1, 1, 1).
+Eigen::Matrix<double, 12, 9> translation_complement() {
+  const double B[4][3] = {{0.5, 0.5, 0.5}, {0.5, -0.5, -0.5}, {-0.5, 0.5, -0.5}, {-0.5, -0.5, 0.5}};
+  Eigen::Matrix<double, 12, 9> Q = Eigen::Matrix<double, 12, 9>::Zero();
+  for (int a = 0; a < 4; ++a)
+    for (int c = 0; c < 3; ++c) Q.block<3, 3>(3 * a, 3 * c) = B[a][c] * Eigen::Matrix3d::Identity();
+  return Q;
+}
+}  // namespace
+
 Mat12 project_psd(const Mat12& H) {
-  Eigen::SelfAdjointEigenSolver<Mat12> es(H);
-  const Vec12 d = es.eigenvalues().cwiseMax(0.0);
-  Mat12 P = es.eigenvectors() * d.asDiagonal() * es.eigenvectors().transpose();
+  // H annihilates the translations (theta is invariant under them), so H = Q (Q^T H Q) Q^T
+  // and its eigenpairs off the translations are those of the 9x9 Q^T H Q: the same
+  // projection as a 12x12 eigen decomposition, at about 0.4x its cost (the profile of a
+  // cloth assembly spent a quarter of its time here).
+  static const Eigen::Matrix<double, 12, 9> Q = translation_complement();
+  const Eigen::Matrix<double, 9, 9> H9 = Q.transpose() * H * Q;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(0.5 * (H9 + H9.transpose()));
+  const Eigen::Matrix<double, 9, 1> d = es.eigenvalues().cwiseMax(0.0);
+  const Eigen::Matrix<double, 12, 9> V = Q * es.eigenvectors();
+  Mat12 P = V * d.asDiagonal() * V.transpose();
   return 0.5 * (P + P.transpose());
 }
 

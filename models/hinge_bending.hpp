@@ -98,7 +98,9 @@ Mat9 half_hinge_hessian(const TriangleFrame& t, bool transpose_n0);
 /// N0) plus half hinge of T~ on (x3, x2, x1). Exactly symmetric.
 Mat12 hess_theta(const HingeFrames& f);
 
-/// Clamp the negative eigenvalues of a symmetric matrix to zero.
+/// Clamp the negative eigenvalues of a symmetric hinge Hessian to zero. H must annihilate the
+/// translations (1 (x) t), as every hinge Hessian does: the decomposition runs on their 9-dim
+/// complement.
 Mat12 project_psd(const Mat12& H);
 
 /// Refactored per-triangle terms (spec 01 §6.7, Eq. 5.7): the sum over the triangle's three
