@@ -20,7 +20,7 @@ TEST_SUITE("apps") {
     REQUIRE(r.code == 0);
     for (const char* s : {"Table 5.2", "Table 5.1", "HANGING CLOTH", "not** the thesis' cloth-sphere", "Hardware:", "| 23 |",
                           "speedup of N vs S", "speedup of N vs A", "N vs S", "N vs A", "S vs A", "hinges/s",
-                          "repetition count in parentheses", "(4 steps)"})
+                          "repetition count in parentheses", "(4 steps)", "PSD-projected Hessian", "P/S"})
       CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
 
     // One JSON line per resolution and method, then the fit.
@@ -32,6 +32,8 @@ TEST_SUITE("apps") {
       CHECK(j.at("forces_hessian").at("reps").get<int>() >= 3);
       CHECK(j.at("forces_hessian").at("min_s").get<double>() > 0);
       CHECK(j.at("forces_hessian_assembly").at("min_s").get<double>() > 0);  // no timing comparisons: the builder is shared
+      CHECK(j.at("projected_forces_hessian").at("reps").get<int>() >= 3);
+      CHECK(j.at("projected_forces_hessian").at("min_s").get<double>() > 0);
       CHECK(j.at("recording").at("steps").get<int>() == 4);
       for (const char* p : {"refactored_per_hinge", "refactored_autodiff", "per_hinge_autodiff"}) {
         const double u = j.at("ulp").at(p).get<double>();
