@@ -146,6 +146,7 @@ Json to_json(const ContactReport& r) {
   put("sp_alternations", r.sp_alternations);
   put("capped_groups", r.capped_groups);
   put("stretched_groups", r.stretched_groups);
+  put("restarted_groups", r.restarted_groups);
   put("contact_newton", r.contact_newton);
   put("damped_steps", r.damped_steps);
   put("contact_fallbacks", r.contact_fallbacks);

@@ -36,6 +36,9 @@
 ///            stop as well when d moved by at most `contact_tol` (converged with a rod still
 ///            over-stretched: `stretched_groups`) or after `newton_max` iterations (`capped_groups`)
 ///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
+///          an iterate that folds or collapses an edge fails the group; with the exact Hessian
+///          (the default) the group then starts again from d_DEL with projected
+///          re-linearisations (`projected_restart`, `restarted_groups`)
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
 /// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
 #include <Eigen/Core>
@@ -99,6 +102,7 @@ struct RodContactParams {
   int newton_max = 100;        ///< ADONIS, staggered projections: constrained Newton iterations per group
   bool limit_stretch = false;  ///< ADONIS, staggered projections: the strain trust region of the constrained Newton step
   HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
+  bool projected_restart = true;  ///< relinearization = exact: a group whose iterate leaves the model's domain starts again with projected re-linearisations
   PredictorUpdate predictor = PredictorUpdate::relinearized;  ///< ADONIS: which rods get a new predictor after the first iteration
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the multipliers that stops them (friction only with exact projections)
@@ -123,6 +127,11 @@ struct RodContactParams {
               "ADONIS, staggered projections: the Hessian of K = M + h^2 H at the re-linearisations after the first (at "
               "d_DEL, a minimiser, the exact one): exact (the thesis; falls back to projected when it does not factorise) or "
               "projected (per-element PSD projection: K positive definite, as the constrained Newton step needs)");
+    v.field("projected_restart", projected_restart,
+            {Unit::none, Range::any(),
+             "ADONIS, staggered projections with relinearization = exact: a group whose constrained Newton iterate folds or "
+             "collapses an edge (the exact Hessian's step ran away) starts again from d_DEL with projected re-linearisations "
+             "(`restarted_groups` in the stats); false: the step fails there (the thesis)"});
     v.choice("predictor", predictor, predictor_update_names,
              "ADONIS: which rods get a new predictor d - K^-1 f(d) at each constrained Newton iteration after the first: "
              "relinearized (only the rods re-linearised in it; the others keep the linear model their stretch accepted) or "
@@ -173,6 +182,8 @@ struct GroupStats {
   double residual = 0;
   bool unconverged = false, capped = false;
   bool stretched = false;  ///< converged (the iterate stopped moving) with a rod above stretch_tol
+  bool left_domain = false;  ///< failed: an iterate folded or collapsed an edge
+  bool restarted = false;    ///< solved again with projected re-linearisations after `left_domain` (projected_restart)
   Status status = Status::success;
   std::string message;
 };
@@ -262,7 +273,7 @@ class RodResponse {
       const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods, prm_.groups);
       stats_.assign(groups.size(), {});
 #pragma omp parallel for schedule(dynamic, 1) if (groups.size() > 1)
-      for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group(sys, groups[g], group_rods[g]);
+      for (int g = 0; g < static_cast<int>(groups.size()); ++g) stats_[g] = solve_group_safe(sys, groups[g], group_rods[g]);
       rep.contact_groups = static_cast<int>(groups.size());
       rep.largest_group = 0;
       rep.max_outer_iterations = 0;
@@ -270,7 +281,9 @@ class RodResponse {
       rep.gs_unconverged = 0;
       rep.capped_groups = 0;
       rep.stretched_groups = 0;
+      rep.restarted_groups = 0;
       for (const GroupStats& st : stats_) {
+        rep.restarted_groups += st.restarted;
         rep.largest_group = std::max(rep.largest_group, st.contacts);
         rep.outer_iterations += st.outer;
         rep.max_outer_iterations = std::max(rep.max_outer_iterations, st.outer);
@@ -488,8 +501,37 @@ class RodResponse {
     return plain;
   }
 
+  /// solve_group with the scene's re-linearisation; with `projected_restart`, a group whose
+  /// exact iteration leaves the model's domain is solved again from d_DEL and its start
+  /// multipliers with projected re-linearisations (the first linearisation, at d_DEL, is the
+  /// same). Runs that succeed with the exact Hessian are unchanged.
   template <class System>
-  GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
+  GroupStats solve_group_safe(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
+    const bool may_restart = relinearizes && prm_.projected_restart && prm_.relinearization == HessianMode::exact;
+    if (!may_restart) return solve_group(sys, ids, rods, prm_.relinearization);
+    std::vector<Eigen::VectorXd> d0(rods.size());
+    for (size_t i = 0; i < rods.size(); ++i) d0[i] = sys.body(rods[i]).d;
+    std::vector<Eigen::Vector3d> lambda0(ids.size());
+    for (size_t i = 0; i < ids.size(); ++i) lambda0[i] = contacts_[ids[i]].lambda;
+    GroupStats st = solve_group(sys, ids, rods, HessianMode::exact);
+    if (!st.left_domain) return st;
+    for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = d0[i];
+    for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = lambda0[i];
+    GroupStats again = solve_group(sys, ids, rods, HessianMode::projected);
+    again.restarted = true;
+    again.outer += st.outer;  // the work of both attempts
+    again.sweeps += st.sweeps;
+    again.relinearized += st.relinearized;
+    again.sp_iterations += st.sp_iterations;
+    again.newton += st.newton;
+    again.fallbacks += st.fallbacks;
+    if (again.status != Status::success)
+      again.message += fmt::format(" (after a restart with projected re-linearisations; the exact iteration: {})", st.message);
+    return again;
+  }
+
+  template <class System>
+  GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods, HessianMode relinearization) {
     GroupStats st;
     st.contacts = static_cast<int>(ids.size());
     // The group's rods are ascending: a contact's rods are found by bisection.
@@ -651,13 +693,14 @@ class RodResponse {
           const auto& body = sys.body(r);
           if (!body.model.admissible(body.q + body.d, body.frames)) {
             st.status = Status::numerical_issue;
+            st.left_domain = true;
             st.message = fmt::format("rod {}: the constrained Newton iterate {} folds or collapses an edge (stretch {:.3g}); reduce dt",
                                      r, outer, sys.stretch(r, body.d));
             return st;
           }
         }
         for (int r : over) {
-          if (sys.relinearize(r, prm_.relinearization) != Status::success) {
+          if (sys.relinearize(r, relinearization) != Status::success) {
             st.status = Status::numerical_issue;
             st.message = fmt::format("rod {}: M + h^2 H cannot be factorised at Newton iteration {}", r, outer);
             return st;
