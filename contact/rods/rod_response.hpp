@@ -525,6 +525,7 @@ class RodResponse {
     again.sp_iterations += st.sp_iterations;
     again.newton += st.newton;
     again.fallbacks += st.fallbacks;
+    again.damped += st.damped;
     if (again.status != Status::success)
       again.message += fmt::format(" (after a restart with projected re-linearisations; the exact iteration: {})", st.message);
     return again;
