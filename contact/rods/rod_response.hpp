@@ -186,6 +186,11 @@ struct GroupStats {
   bool restarted = false;    ///< solved again with projected re-linearisations after `left_domain` (projected_restart)
   Status status = Status::success;
   std::string message;
+  /// Adds the work of another attempt at the same group (iterations, sweeps, refactorisations).
+  void add_work(const GroupStats& o) {
+    outer += o.outer, sweeps += o.sweeps, relinearized += o.relinearized, sp_iterations += o.sp_iterations;
+    newton += o.newton, fallbacks += o.fallbacks, damped += o.damped;
+  }
 };
 
 /// Union-find over rods: contact groups (spec 03 §10.2), deterministic order (rods and
@@ -519,13 +524,7 @@ class RodResponse {
     for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = lambda0[i];
     GroupStats again = solve_group(sys, ids, rods, HessianMode::projected);
     again.restarted = true;
-    again.outer += st.outer;  // the work of both attempts
-    again.sweeps += st.sweeps;
-    again.relinearized += st.relinearized;
-    again.sp_iterations += st.sp_iterations;
-    again.newton += st.newton;
-    again.fallbacks += st.fallbacks;
-    again.damped += st.damped;
+    again.add_work(st);  // the work of both attempts
     if (again.status != Status::success)
       again.message += fmt::format(" (after a restart with projected re-linearisations; the exact iteration: {})", st.message);
     return again;
