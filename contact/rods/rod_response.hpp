@@ -37,8 +37,8 @@
 ///            over-stretched: `stretched_groups`) or after `newton_max` iterations (`capped_groups`)
 ///          re-linearise those rods (all rods: staggered projections), rebuild their P_k
 ///          an iterate that folds or collapses an edge fails the group; with the exact Hessian
-///          (the default) the group then starts again from d_DEL with projected
-///          re-linearisations (`projected_restart`, `restarted_groups`)
+///          (the default) such a group, or one capped at `newton_max`, starts again from d_DEL
+///          with projected re-linearisations (`projected_restart`, `restarted_groups`)
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
 /// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
 #include <Eigen/Core>
@@ -102,7 +102,7 @@ struct RodContactParams {
   int newton_max = 100;        ///< ADONIS, staggered projections: constrained Newton iterations per group
   bool limit_stretch = false;  ///< ADONIS, staggered projections: the strain trust region of the constrained Newton step
   HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
-  bool projected_restart = true;  ///< relinearization = exact: a group whose iterate leaves the model's domain starts again with projected re-linearisations
+  bool projected_restart = true;  ///< relinearization = exact: a group whose iterate leaves the model's domain, or that reaches newton_max, starts again with projected re-linearisations
   PredictorUpdate predictor = PredictorUpdate::relinearized;  ///< ADONIS: which rods get a new predictor after the first iteration
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the multipliers that stops them (friction only with exact projections)
@@ -130,8 +130,9 @@ struct RodContactParams {
     v.field("projected_restart", projected_restart,
             {Unit::none, Range::any(),
              "ADONIS, staggered projections with relinearization = exact: a group whose constrained Newton iterate folds or "
-             "collapses an edge (the exact Hessian's step ran away) starts again from d_DEL with projected re-linearisations "
-             "(`restarted_groups` in the stats); false: the step fails there (the thesis)"});
+             "collapses an edge, or that stops at newton_max (the exact Hessian's step ran away), starts again from d_DEL with "
+             "projected re-linearisations (`restarted_groups` in the stats; a capped exact result is kept when the restart fails "
+             "or is capped too); false: the step fails, or is accepted capped, there (the thesis)"});
     v.choice("predictor", predictor, predictor_update_names,
              "ADONIS: which rods get a new predictor d - K^-1 f(d) at each constrained Newton iteration after the first: "
              "relinearized (only the rods re-linearised in it; the others keep the linear model their stretch accepted) or "
@@ -507,9 +508,10 @@ class RodResponse {
   }
 
   /// solve_group with the scene's re-linearisation; with `projected_restart`, a group whose
-  /// exact iteration leaves the model's domain is solved again from d_DEL and its start
-  /// multipliers with projected re-linearisations (the first linearisation, at d_DEL, is the
-  /// same). Runs that succeed with the exact Hessian are unchanged.
+  /// exact iteration leaves the model's domain or stops at newton_max is solved again from
+  /// d_DEL and its start multipliers with projected re-linearisations (the first
+  /// linearisation, at d_DEL, is the same); a capped exact result is kept if that attempt
+  /// fails or is capped too. Groups that converge with the exact Hessian are unchanged.
   template <class System>
   GroupStats solve_group_safe(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
     const bool may_restart = relinearizes && prm_.projected_restart && prm_.relinearization == HessianMode::exact;
@@ -519,10 +521,19 @@ class RodResponse {
     std::vector<Eigen::Vector3d> lambda0(ids.size());
     for (size_t i = 0; i < ids.size(); ++i) lambda0[i] = contacts_[ids[i]].lambda;
     GroupStats st = solve_group(sys, ids, rods, HessianMode::exact);
-    if (!st.left_domain) return st;
-    for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = d0[i];
-    for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = lambda0[i];
+    if (!st.left_domain && !st.capped) return st;
+    // A capped exact iteration is kept if the projected one fails.
+    std::vector<Eigen::VectorXd> d1(rods.size());
+    std::vector<Eigen::Vector3d> lambda1(ids.size());
+    for (size_t i = 0; i < rods.size(); ++i) d1[i] = sys.body(rods[i]).d, sys.body(rods[i]).d = d0[i];
+    for (size_t i = 0; i < ids.size(); ++i) lambda1[i] = contacts_[ids[i]].lambda, contacts_[ids[i]].lambda = lambda0[i];
     GroupStats again = solve_group(sys, ids, rods, HessianMode::projected);
+    if (st.capped && (again.status != Status::success || again.capped)) {
+      for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = d1[i];
+      for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = lambda1[i];
+      st.add_work(again);
+      return st;
+    }
     again.restarted = true;
     again.add_work(st);  // the work of both attempts
     if (again.status != Status::success)
