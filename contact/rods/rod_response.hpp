@@ -522,7 +522,7 @@ class RodResponse {
     for (size_t i = 0; i < ids.size(); ++i) lambda0[i] = contacts_[ids[i]].lambda;
     GroupStats st = solve_group(sys, ids, rods, HessianMode::exact);
     if (!st.left_domain && !st.capped) return st;
-    // A capped exact iteration is kept if the projected one fails.
+    // A capped exact iteration is kept if the projected one fails or is capped too.
     std::vector<Eigen::VectorXd> d1(rods.size());
     std::vector<Eigen::Vector3d> lambda1(ids.size());
     for (size_t i = 0; i < rods.size(); ++i) d1[i] = sys.body(rods[i]).d, sys.body(rods[i]).d = d0[i];
