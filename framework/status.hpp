@@ -115,7 +115,7 @@ struct ContactReport {
   int sp_alternations = 0;     ///< staggered projections: alternations (contact problem, then friction problem), summed over the groups and iterations
   int capped_groups = 0;       ///< groups that stopped at the Newton cap above the stretch tolerance
   int stretched_groups = 0;    ///< groups whose constrained Newton converged (the iterate stopped moving) with a rod above the stretch tolerance
-  int restarted_groups = 0;    ///< groups solved again with projected re-linearisations after the exact iteration left the model's domain (contact.projected_restart)
+  int restarted_groups = 0;    ///< groups solved again with projected re-linearisations after the exact iteration left the model's domain or stopped at newton_max (contact.projected_restart)
   double max_stretch = 0;      ///< largest edge extension |e|/|e_rest| - 1 after the response
   int redetections = 0;        ///< detections on the corrected trajectory that found new contacts (then solved again); obstacle constraints: rounds in which the converged solve left vertices inside and was continued with their contacts
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations

@@ -184,7 +184,7 @@ struct GroupStats {
   bool unconverged = false, capped = false;
   bool stretched = false;  ///< converged (the iterate stopped moving) with a rod above stretch_tol
   bool left_domain = false;  ///< failed: an iterate folded or collapsed an edge
-  bool restarted = false;    ///< solved again with projected re-linearisations after `left_domain` (projected_restart)
+  bool restarted = false;    ///< solved again with projected re-linearisations after `left_domain` or `capped` (projected_restart)
   Status status = Status::success;
   std::string message;
   /// Adds the work of another attempt at the same group (iterations, sweeps, refactorisations).
@@ -516,21 +516,27 @@ class RodResponse {
   GroupStats solve_group_safe(System& sys, const std::vector<int>& ids, const std::vector<int>& rods) {
     const bool may_restart = relinearizes && prm_.projected_restart && prm_.relinearization == HessianMode::exact;
     if (!may_restart) return solve_group(sys, ids, rods, prm_.relinearization);
-    std::vector<Eigen::VectorXd> d0(rods.size());
-    for (size_t i = 0; i < rods.size(); ++i) d0[i] = sys.body(rods[i]).d;
-    std::vector<Eigen::Vector3d> lambda0(ids.size());
-    for (size_t i = 0; i < ids.size(); ++i) lambda0[i] = contacts_[ids[i]].lambda;
+    // The group's iterate: its rods' displacements and its contacts' multipliers.
+    using Snapshot = std::pair<std::vector<Eigen::VectorXd>, std::vector<Eigen::Vector3d>>;
+    const auto save = [&] {
+      Snapshot s;
+      for (int r : rods) s.first.push_back(sys.body(r).d);
+      for (int id : ids) s.second.push_back(contacts_[id].lambda);
+      return s;
+    };
+    const auto restore = [&](const Snapshot& s) {
+      for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = s.first[i];
+      for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = s.second[i];
+    };
+    const Snapshot start = save();
     GroupStats st = solve_group(sys, ids, rods, HessianMode::exact);
     if (!st.left_domain && !st.capped) return st;
     // A capped exact iteration is kept if the projected one fails or is capped too.
-    std::vector<Eigen::VectorXd> d1(rods.size());
-    std::vector<Eigen::Vector3d> lambda1(ids.size());
-    for (size_t i = 0; i < rods.size(); ++i) d1[i] = sys.body(rods[i]).d, sys.body(rods[i]).d = d0[i];
-    for (size_t i = 0; i < ids.size(); ++i) lambda1[i] = contacts_[ids[i]].lambda, contacts_[ids[i]].lambda = lambda0[i];
+    const Snapshot exact_end = save();
+    restore(start);
     GroupStats again = solve_group(sys, ids, rods, HessianMode::projected);
     if (st.capped && (again.status != Status::success || again.capped)) {
-      for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = d1[i];
-      for (size_t i = 0; i < ids.size(); ++i) contacts_[ids[i]].lambda = lambda1[i];
+      restore(exact_end);
       st.add_work(again);
       return st;
     }
