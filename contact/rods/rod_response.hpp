@@ -58,6 +58,7 @@
 #include "contact/rods/anderson.hpp"
 #include "contact/rods/rod_detection.hpp"
 #include "contact/rods/rod_group_solver.hpp"
+#include "contact/rods/thick_ccd.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params.hpp"
 #include "framework/scene.hpp"
@@ -111,6 +112,7 @@ struct RodContactParams {
   GapTerm gap = GapTerm::none;
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
   double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
+  bool overlap_follow = true;  ///< end-overlap contacts follow their edge pair: moved to the new closest points and their end normal, not added again
   ContactSolver solver = ContactSolver::gauss_seidel;  ///< the contact solve of a group
   int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
   bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
@@ -160,6 +162,13 @@ struct RodContactParams {
              "re-detection: two edges of a rod pair in contact (or their neighbours) that end the corrected step overlapping by more "
              "than this fraction of r_a + r_b get a contact at their closest end points, normal from those points at the start of "
              "the step (0: off; the contacts hold only at their own material points along their own normals)"});
+    v.field("overlap_follow", overlap_follow,
+            {Unit::none, Range::any(),
+             "re-detection with overlap_tol > 0: an edge pair keeps one end-overlap contact, which each round that finds the pair "
+             "overlapping again moves to the new closest end points and takes their normal at the end of the corrected step (the "
+             "linearisation of the edges' distance at the current iterate; where the end points nearly meet or have passed each "
+             "other, the normal of the edges' crossing, on the side where they were at the start); false: each such round adds "
+             "another contact, with the start offset of its points as normal"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
     v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
@@ -223,6 +232,7 @@ class RodResponse {
     std::vector<Eigen::VectorXd> del(R);
     for (int r = 0; r < R; ++r) del[r] = sys.body(r).d;
     contacts_.clear();
+    follower_.clear();
     stats_.clear();
     // Detection on q -> q + d_DEL, then again on q -> q + d after each response: the
     // constraints are linearised, and a later Newton iteration (or the response of other
@@ -258,19 +268,27 @@ class RodResponse {
         if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
       }
       if (round > 0 && prm_.overlap_tol > 0) {
-        const std::vector<RodContact> extra = end_overlaps(curves);
-        for (const RodContact& c : extra) {
+        follower_.resize(contacts_.size(), false);
+        for (const Overlap& o : end_overlaps(curves)) {
           RodContactRows k;
-          if (build_rows(sys, c, k, true)) contacts_.push_back(std::move(k)), ++added;
+          if (!build_rows(sys, o.contact, k, true)) continue;
+          ++added;
+          if (o.follower < 0) {
+            contacts_.push_back(std::move(k));
+            follower_.push_back(prm_.overlap_follow);
+          } else {  // the pair's contact moves; its multipliers stay as the warm start
+            k.lambda = contacts_[o.follower].lambda;
+            contacts_[o.follower] = std::move(k);
+          }
         }
       }
       if (added == 0) break;
       if (round > 0) {
         ++rep.redetections;
         rep.redetected += static_cast<int>(added);
-        if (round == prm_.redetections) {  // still new contacts after the last solve
+        if (round == prm_.redetections) {  // still new (or moved) contacts after the last solve
           rep.status = Status::no_convergence;
-          rep.message = fmt::format("{} new contacts after {} re-detections: the response keeps creating contacts", added, round);
+          rep.message = fmt::format("{} new or moved contacts after {} re-detections: the response keeps creating contacts", added, round);
           break;
         }
       }
@@ -316,19 +334,39 @@ class RodResponse {
   }
 
  private:
+  /// An end overlap to hold: a new contact, or the new place of the pair's follower.
+  struct Overlap {
+    RodContact contact;
+    int follower = -1;  ///< index into contacts_ of the pair's contact that moves there; -1: add
+  };
   /// Edges of rod pairs in contact that end the corrected step q -> q + d (curves.x1)
-  /// overlapping by more than overlap_tol (r_a + r_b): a contact holds n^T (u_a - u_b) >= 0
+  /// overlapping by more than overlap_tol (r_a + r_b): a contact holds n^T (u_a - u_b) >= -gap
   /// at its own material points along its own normal, and a rotation or a slide of nearly
   /// parallel curls brings other points through. Checked: each contact's edge pair and the
-  /// adjacent edges on both rods. A new contact sits at the closest end points, with the
-  /// normal of those material points at the start of the step (apart there, so no approach
-  /// along it keeps them apart; the constraint lets them close that start gap, n^T d >=
-  /// -gap, see build_rows); skipped when a known contact of these edges already sits there
-  /// with that normal (merge_fraction, merge_angle). Skipping wherever a known contact is
-  /// within r_a + r_b of both points instead let 16 pairs through on the 250-rod ball: the
-  /// crossings happen at known contacts whose normal has turned.
-  std::vector<RodContact> end_overlaps(const RodCurves& c) const {
-    std::vector<RodContact> out;
+  /// adjacent edges on both rods. The contact sits at the closest end points; skipped when a
+  /// known contact of these edges already sits there with that normal (merge_fraction,
+  /// merge_angle). Skipping wherever a known contact is within r_a + r_b of both points
+  /// instead let 16 pairs through on the 250-rod ball: the crossings happen at known
+  /// contacts whose normal has turned.
+  ///
+  /// overlap_follow = false: a new contact each time, with the normal of its material points
+  /// at the start of the step (apart there, so no approach along it keeps them apart; the
+  /// constraint lets them close that start gap, n^T d >= -gap, see build_rows). Where two
+  /// edges fold against each other at a shallow angle the overlap then reappears next to the
+  /// new contact, just outside the merge distance, round after round, until the step fails
+  /// (docs/rods.md, "the re-detection walk").
+  /// overlap_follow = true: a pair has at most one such contact, which moves to the closest
+  /// end points with the normal n1 between them at the end: n1^T (p_a - p_b) >= r_a + r_b is
+  /// the linearisation of the edges' distance at the current iterate (its gradient at
+  /// interior closest points), so the rounds are sequential linearisations of the distance
+  /// constraint. Where the end points nearly meet (no direction) or have passed each other
+  /// (n1 against their start offset: the constraint would keep them crossed) the normal is
+  /// that of the edges' crossing: their cross product at the end, on the side where the
+  /// edges were at the start. Not the start offset of the end points: where an edge slides
+  /// past a vertex (the whip_edge test) it lies nearly along that edge, and the crossing then
+  /// moves by about r_a + r_b along it each round.
+  std::vector<Overlap> end_overlaps(const RodCurves& c) const {
+    std::vector<Overlap> out;
     std::set<std::array<int, 4>> seen;
     const double cos_merge = std::cos(prm_.detection.merge_angle * std::numbers::pi / 180);
     const size_t known = contacts_.size();
@@ -348,19 +386,37 @@ class RodResponse {
           if (!(end.distance_squared < std::pow(reach * (1 - prm_.overlap_tol), 2))) continue;
           RodContact k;
           k.rod_a = ra, k.edge_a = ea, k.s_a = end.s, k.rod_b = rb, k.edge_b = eb, k.s_b = end.t;
-          const Eigen::Vector3d pa = (1 - end.s) * c.x0[ia] + end.s * c.x0[ia + 1], pb = (1 - end.t) * c.x0[ib] + end.t * c.x0[ib + 1];
-          const double start = (pa - pb).norm();
-          if (!(start > 1e-3 * reach)) continue;  // these points already met at the start: no normal to keep
-          k.normal = (pa - pb) / start;
-          k.gap = start - reach;
-          const bool held = std::any_of(contacts_.begin(), contacts_.end(), [&](const RodContactRows& r) {
-            const RodContact& h = r.geometry;
-            if (!same_pair(h, k)) return false;
-            const double la = (c.x0[ia + 1] - c.x0[ia]).norm(), lb = (c.x0[ib + 1] - c.x0[ib]).norm();
+          auto at = [&](const std::vector<Eigen::Vector3d>& x, int i, double s) -> Eigen::Vector3d { return (1 - s) * x[i] + s * x[i + 1]; };
+          const Eigen::Vector3d start_offset = at(c.x0, ia, end.s) - at(c.x0, ib, end.t);
+          const Eigen::Vector3d end_offset = at(c.x1, ia, end.s) - at(c.x1, ib, end.t);
+          const double start = start_offset.norm(), gone = std::sqrt(end.distance_squared);
+          if (prm_.overlap_follow && gone > 1e-3 * reach && end_offset.dot(start_offset) > 0) {
+            k.normal = end_offset / gone;
+          } else if (prm_.overlap_follow) {
+            // The edges (nearly) cross at the end: the normal of their crossing (the cross
+            // product of the edges at the end), on the side where the edges were at the start.
+            const auto begin = detection::segment_segment_distance(c.x0[ia], c.x0[ia + 1], c.x0[ib], c.x0[ib + 1]);
+            const Eigen::Vector3d side = at(c.x0, ia, begin.s) - at(c.x0, ib, begin.t);
+            k.normal = segment_contact_normal({c.x1[ia], c.x1[ia + 1], c.x1[ib], c.x1[ib + 1]}, end.s, end.t, 0, {side, start_offset});
+          } else {
+            if (!(start > 1e-3 * reach)) continue;  // these points already met at the start: no normal to keep
+            k.normal = start_offset / start;
+          }
+          k.gap = k.normal.dot(start_offset) - reach;
+          const double la = (c.x0[ia + 1] - c.x0[ia]).norm(), lb = (c.x0[ib + 1] - c.x0[ib]).norm();
+          auto sits_there = [&](const RodContact& h) {
             return std::abs(h.s_a - k.s_a) * la < prm_.detection.merge_fraction * reach &&
                    std::abs(h.s_b - k.s_b) * lb < prm_.detection.merge_fraction * reach && h.normal.dot(k.normal) > cos_merge;
-          });
-          if (!held) out.push_back(k);
+          };
+          int follower = -1;
+          bool held = false;
+          for (size_t j = 0; j < contacts_.size(); ++j) {
+            const RodContact& h = contacts_[j].geometry;
+            if (!same_pair(h, k)) continue;
+            held = held || sits_there(h);
+            if (follower_[j]) follower = static_cast<int>(j);
+          }
+          if (!held) out.push_back({k, follower});
         }
     }
     return out;
@@ -737,6 +793,7 @@ class RodResponse {
 
   Params prm_;
   std::vector<RodContactRows> contacts_;
+  std::vector<bool> follower_;  ///< per contact: an end-overlap contact that follows its edge pair (overlap_follow)
   std::vector<GroupStats> stats_;
 };
 

@@ -5,8 +5,10 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -408,12 +410,15 @@ TEST_SUITE("rods") {
     // away without folding an edge and stops at newton_max with the rod stretched by 1e74,
     // which the step accepts as capped (the thesis). With the restart (default) the group is
     // solved again with projected re-linearisations, which converge within stretch_tol.
+    // With end-overlap contacts that follow their pair (the default) this step's exact
+    // iteration folds an edge instead of stopping capped (the case of the test above), so
+    // the run keeps the contact set it was found with: contact.overlap_follow = false.
     const char* root = std::getenv("WEFT_SOURCE_DIR");
     REQUIRE(root);
     const auto run = [&](const char* restart, int& restarted, int& capped, double& strain) {
       auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json",
                                            {"combo=rods_adonis", "rods.0.material.radius=2e-5", "time.dt=0.01", "time.frame_rate=50",
-                                            "contact.redetections=20", "integrator.max_iterations=200",
+                                            "contact.redetections=20", "integrator.max_iterations=200", "contact.overlap_follow=false",
                                             std::string("contact.projected_restart=") + restart}));
       restarted = capped = 0, strain = 0;
       for (int k = 0; k < 31; ++k) {
@@ -436,5 +441,107 @@ TEST_SUITE("rods") {
     CHECK(restarted >= 1);
     CHECK(capped == 0);
     CHECK(strain < 0.0101);
+  }
+
+  TEST_CASE("rods: an end-overlap contact follows its edge pair instead of walking along the edge") {
+    // The near-wall whip at 30 vertices, 20 rad/s and 2 ms with projected re-linearisations
+    // (Figure 9.2 over 5 s): at step 1035 the rod folds against itself at a shallow angle.
+    // With contact.overlap_follow = false each re-detection round gives edges 12 and 23 a new
+    // contact next to the last, about r_a + r_b further along edge 12, until the step fails
+    // after `redetections` rounds (docs/rods.md, "the re-detection walk"). With the default
+    // the pair's end-overlap contact moves to the new closest points and their end normal.
+    struct Run {
+      int steps = 0, most_on_a_pair = 0, deepest = 0;
+      StepReport failure;
+    };
+    const auto run = [](const char* follow, const char* overlap_tol = "0.01") {
+      auto sim = near_wall_whip({"rods.0.vertices=30", "rods.0.motion.angular_velocity=[0,0,20]", "combo=rods_adonis",
+                                 "contact.relinearization=projected", "contact.redetections=20", "integrator.max_iterations=200",
+                                 "time.dt=0.002", "time.frame_rate=50", "time.duration=2.2", std::string("contact.overlap_follow=") + follow,
+                                 std::string("contact.overlap_tol=") + overlap_tol});
+      const Scene& scene = sim->scene();
+      const std::vector<double> radius(1, scene.spec.rods[0].material.radius);
+      Run w;
+      const auto contacts_on_a_pair = [&] {
+        std::map<std::array<int, 2>, int> n;
+        for (const auto& k : as<RodsAdonis>(*sim).contact().last_contacts())
+          if (k.geometry.kind == contact::rods::RodContact::Kind::rod_rod) ++n[{k.geometry.edge_a, k.geometry.edge_b}];
+        for (const auto& [pair, count] : n) w.most_on_a_pair = std::max(w.most_on_a_pair, count);
+      };
+      for (int k = 0; k < 1100; ++k) {
+        const StepReport r = sim->step();
+        contacts_on_a_pair();
+        if (!r.ok()) {
+          w.failure = r;
+          return w;
+        }
+        ++w.steps;
+        std::vector<Eigen::Vector3d> x(sim->state().num_vertices());
+        for (int i = 0; i < sim->state().num_vertices(); ++i) x[i] = sim->state().position(i);
+        // self-overlaps deeper than overlap_tol (1 %) of r_a + r_b at the end of the step
+        w.deepest = std::max(w.deepest, contact::rods::count_rod_overlaps(x, scene.rods.first, radius, 0.01 * 2 * radius[0], 2));
+      }
+      return w;
+    };
+    const Run off = run("false");
+    MESSAGE("overlap_follow = false: " << off.steps << " steps, at most " << off.most_on_a_pair << " contacts on one edge pair, then: "
+                                       << off.failure.message);
+    CHECK(off.steps < 1100);  // the guard: the walk ends the run
+    CHECK(off.failure.message.find("keeps creating contacts") != std::string::npos);
+    CHECK(off.most_on_a_pair > 10);
+    const Run on = run("true");
+    MESSAGE("overlap_follow = true: " << on.steps << " steps, at most " << on.most_on_a_pair << " contacts on one edge pair, "
+                                      << on.deepest << " pairs deeper than 1 % at a step's end; " << on.failure.message);
+    CHECK(on.steps == 1100);
+    CHECK(on.most_on_a_pair <= 2);  // the detected contact and the follower
+    CHECK(on.deepest == 0);
+    // Not vacuous: without end-overlap contacts the rod does end steps overlapping itself.
+    const Run none = run("true", "0");
+    MESSAGE("overlap_tol = 0: " << none.steps << " steps, " << none.deepest << " pairs deeper than 1 % at a step's end; " << none.failure.message);
+    CHECK(none.deepest > 0);
+  }
+
+  TEST_CASE("rods: an end-overlap contact of edges that cross at the end takes the normal of their crossing") {
+    // scenes/whip_edge.json with a 6 um rod at 0.5 ms: at step 357 the rod's edge 21 slides
+    // by 0.8 mm past the held vertex 1, which touched it at the start, and ends the corrected
+    // step crossing the held first edges. The start offset of the crossing points lies nearly
+    // along edge 21, so a contact with that normal (overlap_follow = false) only pushes the
+    // edge along itself, and the crossing moves by about r_a + r_b each round until the step
+    // fails; the pair's thick CCD (tried) hits at the start, where the pair touched, and its
+    // contact holds the old points. The follower takes the cross product of the edges at the
+    // end, on the side where they were at the start.
+    const char* root = std::getenv("WEFT_SOURCE_DIR");
+    REQUIRE(root);
+    const auto run = [&](const char* follow, int& steps, int& deepest, const char* overlap_tol = "0.01") {
+      auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json",
+                                           {"combo=rods_adonis", "rods.0.material.radius=6e-6", "time.dt=0.0005", "time.frame_rate=50",
+                                            "time.duration=0.2", "contact.redetections=20", "integrator.max_iterations=200",
+                                            std::string("contact.overlap_follow=") + follow, std::string("contact.overlap_tol=") + overlap_tol}));
+      const std::vector<double> radius(1, 6e-6);
+      steps = deepest = 0;
+      for (int k = 0; k < 400; ++k) {
+        const StepReport r = sim->step();
+        if (!r.ok()) return r;
+        ++steps;
+        std::vector<Eigen::Vector3d> x(sim->state().num_vertices());
+        for (int i = 0; i < sim->state().num_vertices(); ++i) x[i] = sim->state().position(i);
+        deepest = std::max(deepest, contact::rods::count_rod_overlaps(x, sim->scene().rods.first, radius, 0.01 * 2 * radius[0], 2));
+      }
+      return StepReport{};
+    };
+    int steps = 0, deepest = 0;
+    const StepReport off = run("false", steps, deepest);
+    MESSAGE("overlap_follow = false: " << steps << " steps, then: " << off.message);
+    CHECK(steps < 400);  // the guard
+    CHECK(off.message.find("keeps creating contacts") != std::string::npos);
+    const StepReport on = run("true", steps, deepest);
+    MESSAGE("overlap_follow = true: " << steps << " steps, " << deepest << " pairs deeper than 1 % at a step's end; " << on.message);
+    CHECK(on.ok());
+    CHECK(steps == 400);
+    CHECK(deepest == 0);
+    // Not vacuous: without end-overlap contacts the rod ends steps crossing itself.
+    const StepReport none = run("true", steps, deepest, "0");
+    MESSAGE("overlap_tol = 0: " << steps << " steps, " << deepest << " pairs deeper than 1 % at a step's end; " << none.message);
+    CHECK(deepest > 0);
   }
 }
