@@ -97,7 +97,7 @@ struct ContactReport {
   int sticking = 0;            ///< contacts held by static friction (3D constraints) during the step
   int projected = 0;           ///< vertices projected onto an obstacle's thickness surface after the solve
   double solve_penetration = 0;  ///< [m] largest depth below the contact thickness after the solve, before the projection
-  int redetected = 0;          ///< contacts added by the re-detections of the step (obstacle constraints: vertices the solve put inside; see `redetections`)
+  int redetected = 0;          ///< contacts added (rods: or end-overlap contacts moved, overlap_follow) by the re-detections of the step (obstacle constraints: vertices the solve put inside; see `redetections`)
   // Counters of the implicit contact strategy (contact/implicit_contact.hpp).
   int springs = 0;             ///< cloth-cloth repulsion springs of the step (pairs within the thickness at the start or the prediction)
   int pattern_updates = 0;     ///< 1 when the springs changed the matrix pattern this step (new symbolic analysis)
