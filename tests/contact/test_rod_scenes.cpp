@@ -407,18 +407,16 @@ TEST_SUITE("rods") {
 
   TEST_CASE("rods: ADONIS restarts a group whose exact iteration ends capped and stretched with projected re-linearisations") {
     // scenes/whip_edge.json with a 20 um rod at 10 ms: at step 31 the exact iteration runs
-    // away without folding an edge and stops at newton_max with the rod stretched by 1e74,
-    // which the step accepts as capped (the thesis). With the restart (default) the group is
+    // away without folding an edge and stops at newton_max with the rod stretched by 1e79
+    // (1e74 before end-overlap contacts followed their pair), which the step accepts as
+    // capped (the thesis). With the restart (default) the group is
     // solved again with projected re-linearisations, which converge within stretch_tol.
-    // With end-overlap contacts that follow their pair (the default) this step's exact
-    // iteration folds an edge instead of stopping capped (the case of the test above), so
-    // the run keeps the contact set it was found with: contact.overlap_follow = false.
     const char* root = std::getenv("WEFT_SOURCE_DIR");
     REQUIRE(root);
     const auto run = [&](const char* restart, int& restarted, int& capped, double& strain) {
       auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json",
                                            {"combo=rods_adonis", "rods.0.material.radius=2e-5", "time.dt=0.01", "time.frame_rate=50",
-                                            "contact.redetections=20", "integrator.max_iterations=200", "contact.overlap_follow=false",
+                                            "contact.redetections=20", "integrator.max_iterations=200",
                                             std::string("contact.projected_restart=") + restart}));
       restarted = capped = 0, strain = 0;
       for (int k = 0; k < 31; ++k) {
