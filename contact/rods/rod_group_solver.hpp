@@ -48,6 +48,7 @@ struct RodContactRows {
   Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
   double mu = 0;
   double scale = 1;                          ///< coulomb_scale(W)
+  bool follows = false;                      ///< an end-overlap contact that moves with its edge pair (contact.overlap_follow)
 };
 
 /// The rods' displacements of a group, by slot.

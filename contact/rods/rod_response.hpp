@@ -160,8 +160,8 @@ struct RodContactParams {
     v.field("overlap_tol", overlap_tol,
             {Unit::none, Range::closed(0, 1),
              "re-detection: two edges of a rod pair in contact (or their neighbours) that end the corrected step overlapping by more "
-             "than this fraction of r_a + r_b get a contact at their closest end points, normal from those points at the start of "
-             "the step (0: off; the contacts hold only at their own material points along their own normals)"});
+             "than this fraction of r_a + r_b get a contact at their closest end points (its normal: overlap_follow) (0: off; the "
+             "contacts hold only at their own material points along their own normals)"});
     v.field("overlap_follow", overlap_follow,
             {Unit::none, Range::any(),
              "re-detection with overlap_tol > 0: an edge pair keeps one end-overlap contact, which each round that finds the pair "
@@ -232,7 +232,6 @@ class RodResponse {
     std::vector<Eigen::VectorXd> del(R);
     for (int r = 0; r < R; ++r) del[r] = sys.body(r).d;
     contacts_.clear();
-    follower_.clear();
     stats_.clear();
     // Detection on q -> q + d_DEL, then again on q -> q + d after each response: the
     // constraints are linearised, and a later Newton iteration (or the response of other
@@ -268,14 +267,13 @@ class RodResponse {
         if (build_rows(sys, c, k)) contacts_.push_back(std::move(k)), ++added;
       }
       if (round > 0 && prm_.overlap_tol > 0) {
-        follower_.resize(contacts_.size(), false);
         for (const Overlap& o : end_overlaps(curves)) {
           RodContactRows k;
           if (!build_rows(sys, o.contact, k, true)) continue;
           ++added;
+          k.follows = prm_.overlap_follow;
           if (o.follower < 0) {
             contacts_.push_back(std::move(k));
-            follower_.push_back(prm_.overlap_follow);
           } else {  // the pair's contact moves; its multipliers stay as the warm start
             k.lambda = contacts_[o.follower].lambda;
             contacts_[o.follower] = std::move(k);
@@ -414,7 +412,7 @@ class RodResponse {
             const RodContact& h = contacts_[j].geometry;
             if (!same_pair(h, k)) continue;
             held = held || sits_there(h);
-            if (follower_[j]) follower = static_cast<int>(j);
+            if (contacts_[j].follows) follower = static_cast<int>(j);
           }
           if (!held) out.push_back({k, follower});
         }
@@ -793,7 +791,6 @@ class RodResponse {
 
   Params prm_;
   std::vector<RodContactRows> contacts_;
-  std::vector<bool> follower_;  ///< per contact: an end-overlap contact that follows its edge pair (overlap_follow)
   std::vector<GroupStats> stats_;
 };
 

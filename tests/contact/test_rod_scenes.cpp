@@ -42,6 +42,13 @@ Eigen::Vector3d centre_of_mass(const State& s) {
   return c / s.mass.sum();
 }
 
+/// Rod edge pairs of `sim`'s current state (all rods of radius r) closer than 2 r - depth.
+int overlaps_deeper_than(const AnySimulator& sim, double r, double depth) {
+  std::vector<Eigen::Vector3d> x(sim.state().num_vertices());
+  for (int i = 0; i < sim.state().num_vertices(); ++i) x[i] = sim.state().position(i);
+  return contact::rods::count_rod_overlaps(x, sim.scene().rods.first, std::vector<double>(sim.scene().rods.num_rods(), r), depth, 2);
+}
+
 // A 10 cm hair-like rod (r = 50 um, Y = 1 GPa).
 const char* straight_free = R"([{"shape": "straight", "vertices": 12, "length": 0.1, "root": [0, 0, 0.5],
   "direction": [1, 0, 0], "root_held": "free", "material": {"radius": 5e-5, "youngs_modulus": 1e9, "density": 1300}}])";
@@ -171,16 +178,12 @@ TEST_SUITE("rods") {
     for (const std::string combo : {"rods_impulse", "rods_linear", "rods_adonis"}) {
       CAPTURE(combo);
       auto sim = make_simulator(rod_scene(combo, two, 0.002, 0.2, R"({"contact": {"friction": 0.5}})"));
-      const Scene& scene = sim->scene();
-      std::vector<double> radius(scene.rods.num_rods(), 1e-4);
       int touching = 0;
       for (int k = 0; k < 60; ++k) {
         const StepReport rep = sim->step();
         REQUIRE_MESSAGE(rep.ok(), rep.message);
         touching += rep.contact.rod_contacts > 0;
-        std::vector<Eigen::Vector3d> x(sim->state().num_vertices());
-        for (int i = 0; i < sim->state().num_vertices(); ++i) x[i] = sim->state().position(i);
-        REQUIRE(contact::rods::count_rod_overlaps(x, scene.rods.first, radius, 1e-7, 2) == 0);
+        REQUIRE(overlaps_deeper_than(*sim, 1e-4, 1e-7) == 0);
       }
       CHECK(touching > 5);
     }
@@ -225,6 +228,13 @@ std::unique_ptr<AnySimulator> near_wall_whip(std::vector<std::string> overrides)
                         "obstacles.0.center=[0.17,0,0]"})
     overrides.insert(overrides.begin(), o);
   return make_simulator(load_scene(std::string(root) + "/scenes/whip.json", overrides));
+}
+
+/// scenes/whip_edge.json (the tension-free whip: its middle strikes a wall edge) with overrides.
+std::unique_ptr<AnySimulator> edge_whip(const std::vector<std::string>& overrides) {
+  const char* root = std::getenv("WEFT_SOURCE_DIR");
+  REQUIRE(root);
+  return make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json", overrides));
 }
 
 /// The near-wall whip with 240 vertices (0.84 mm edges) at 10 rad/s and 0.1 ms under linear
@@ -411,13 +421,9 @@ TEST_SUITE("rods") {
     // (1e74 before end-overlap contacts followed their pair), which the step accepts as
     // capped (the thesis). With the restart (default) the group is
     // solved again with projected re-linearisations, which converge within stretch_tol.
-    const char* root = std::getenv("WEFT_SOURCE_DIR");
-    REQUIRE(root);
     const auto run = [&](const char* restart, int& restarted, int& capped, double& strain) {
-      auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json",
-                                           {"combo=rods_adonis", "rods.0.material.radius=2e-5", "time.dt=0.01", "time.frame_rate=50",
-                                            "contact.redetections=20", "integrator.max_iterations=200",
-                                            std::string("contact.projected_restart=") + restart}));
+      auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=2e-5", "time.dt=0.01", "time.frame_rate=50",
+                            "contact.redetections=20", "integrator.max_iterations=200", std::string("contact.projected_restart=") + restart});
       restarted = capped = 0, strain = 0;
       for (int k = 0; k < 31; ++k) {
         const StepReport r = sim->step();
@@ -457,8 +463,7 @@ TEST_SUITE("rods") {
                                  "contact.relinearization=projected", "contact.redetections=20", "integrator.max_iterations=200",
                                  "time.dt=0.002", "time.frame_rate=50", "time.duration=2.2", std::string("contact.overlap_follow=") + follow,
                                  std::string("contact.overlap_tol=") + overlap_tol});
-      const Scene& scene = sim->scene();
-      const std::vector<double> radius(1, scene.spec.rods[0].material.radius);
+      const double radius = sim->scene().spec.rods[0].material.radius;
       Run w;
       const auto contacts_on_a_pair = [&] {
         std::map<std::array<int, 2>, int> n;
@@ -474,10 +479,8 @@ TEST_SUITE("rods") {
           return w;
         }
         ++w.steps;
-        std::vector<Eigen::Vector3d> x(sim->state().num_vertices());
-        for (int i = 0; i < sim->state().num_vertices(); ++i) x[i] = sim->state().position(i);
         // self-overlaps deeper than overlap_tol (1 %) of r_a + r_b at the end of the step
-        w.deepest = std::max(w.deepest, contact::rods::count_rod_overlaps(x, scene.rods.first, radius, 0.01 * 2 * radius[0], 2));
+        w.deepest = std::max(w.deepest, overlaps_deeper_than(*sim, radius, 0.01 * 2 * radius));
       }
       return w;
     };
@@ -508,22 +511,16 @@ TEST_SUITE("rods") {
     // fails; the pair's thick CCD (tried) hits at the start, where the pair touched, and its
     // contact holds the old points. The follower takes the cross product of the edges at the
     // end, on the side where they were at the start.
-    const char* root = std::getenv("WEFT_SOURCE_DIR");
-    REQUIRE(root);
     const auto run = [&](const char* follow, int& steps, int& deepest, const char* overlap_tol = "0.01") {
-      auto sim = make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json",
-                                           {"combo=rods_adonis", "rods.0.material.radius=6e-6", "time.dt=0.0005", "time.frame_rate=50",
-                                            "time.duration=0.2", "contact.redetections=20", "integrator.max_iterations=200",
-                                            std::string("contact.overlap_follow=") + follow, std::string("contact.overlap_tol=") + overlap_tol}));
-      const std::vector<double> radius(1, 6e-6);
+      auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=6e-6", "time.dt=0.0005", "time.frame_rate=50", "time.duration=0.2",
+                            "contact.redetections=20", "integrator.max_iterations=200", std::string("contact.overlap_follow=") + follow,
+                            std::string("contact.overlap_tol=") + overlap_tol});
       steps = deepest = 0;
       for (int k = 0; k < 400; ++k) {
         const StepReport r = sim->step();
         if (!r.ok()) return r;
         ++steps;
-        std::vector<Eigen::Vector3d> x(sim->state().num_vertices());
-        for (int i = 0; i < sim->state().num_vertices(); ++i) x[i] = sim->state().position(i);
-        deepest = std::max(deepest, contact::rods::count_rod_overlaps(x, sim->scene().rods.first, radius, 0.01 * 2 * radius[0], 2));
+        deepest = std::max(deepest, overlaps_deeper_than(*sim, 6e-6, 0.01 * 2 * 6e-6));
       }
       return StepReport{};
     };
