@@ -1,3 +1,4 @@
+#include "linear/lapack_info.hpp"
 #include "apps/bench_hair.hpp"
 
 #include <fmt/format.h>
@@ -430,6 +431,7 @@ int bench_hair(const BenchHairOptions& opt) {
   csv.flush();
   Json meta = meta_record("hair", git, cpu, threads);
   meta.update(Json{{"scene", scene_path},
+             {"lapack", linear::lapack_library()},
              {"rods", rods},
              {"overrides", opt.overrides},
              {"strategies", strategies},
@@ -440,10 +442,10 @@ int bench_hair(const BenchHairOptions& opt) {
   jl << meta.dump() << std::endl;
 
   const std::string title = fmt::format(
-      "# weft bench hair: {} ({} rods of {} vertices)\n\nHardware: {} ({} hardware threads, {} OpenMP threads); git {}; {}\n\n"
+      "# weft bench hair: {} ({} rods of {} vertices)\n\nHardware: {} ({} hardware threads, {} OpenMP threads); git {}; {}; LAPACK {}\n\n"
       "Each run simulates {} s (the thesis' runs are longer; its duration is not stated). Failure: a failed step, a "
       "non-finite state or energy, or an edge strain |l / l_rest - 1| > {} (the classification of `weft stability`).\n",
-      scene_name, rods, vertices, cpu, std::thread::hardware_concurrency(), threads, git, build_flags(),
+      scene_name, rods, vertices, cpu, std::thread::hardware_concurrency(), threads, git, build_flags(), linear::lapack_library(),
       duration > 0 ? duration : scene_duration, opt.strain_threshold);
   fmt::print("{}\n", title);
   fmt::print("| strategy | dt | outcome | steps | wall | s/step | contacts/step | max | groups/step | Newton/group | weighted | max "

@@ -1,3 +1,4 @@
+#include "linear/lapack_info.hpp"
 #include "apps/runner.hpp"
 
 #include <fmt/format.h>
@@ -318,6 +319,7 @@ int run_scene(const RunOptions& opt) {
                {"linear_iterations", {{"total", linear_total}, {"mean_per_step", steps ? double(linear_total) / steps : 0.0}}},
                {"stage_seconds", to_json(stage_total)},
                {"final_energy", energies},
+               {"lapack", linear::lapack_library()},
                {"threads",
 #ifdef _OPENMP
                 omp_get_max_threads()

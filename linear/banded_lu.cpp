@@ -1,12 +1,17 @@
 #include "linear/banded_lu.hpp"
 
+#include <dlfcn.h>
 #include <fmt/format.h>
+
+#include <climits>
+#include <cstdlib>
 
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
 
 #include "framework/error.hpp"
+#include "linear/lapack_info.hpp"
 
 // LAPACK (Fortran calling convention; gfortran appends the hidden length of character
 // arguments, passed explicitly for dgbtrs' TRANS).
@@ -17,6 +22,13 @@ void dgbtrs_(const char* trans, const int* n, const int* kl, const int* ku, cons
 }
 
 namespace weft::linear {
+
+std::string lapack_library() {
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&dgbtrf_), &info) == 0 || info.dli_fname == nullptr) return "unknown";
+  char resolved[PATH_MAX];
+  return realpath(info.dli_fname, resolved) ? std::string(resolved) : std::string(info.dli_fname);
+}
 
 Status BandedLu::factorize(const BandMatrix& A) {
   lu_ = A;

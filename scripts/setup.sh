@@ -4,10 +4,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# libopenblas0-pthread: the rods' banded solves call LAPACK (dgbtrf/dgbtrs), and reference
+# LAPACK and OpenBLAS round differently. A hair ball or a whip is chaotic over hundreds of
+# steps, so which one liblapack.so.3 points to decides which step a marginal run fails at:
+# two default-suite tests passed on OpenBLAS and failed on reference LAPACK (2026-11-28).
+# Installing it here gives every build (default, back ends, slow) the same LAPACK; results
+# were then bitwise identical on an Intel Xeon and an AMD EPYC.
 PACKAGES=(cmake ninja-build g++ ccache pkg-config
           libeigen3-dev libboost-dev libfmt-dev doctest-dev
           nlohmann-json3-dev libtinyobjloader-dev libcli11-dev libspdlog-dev
-          liblapack-dev python3-matplotlib python3-pil povray ffmpeg fonts-dejavu-core)
+          liblapack-dev libopenblas0-pthread python3-matplotlib python3-pil povray ffmpeg fonts-dejavu-core)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -2,10 +2,12 @@
 
 #include <Eigen/Dense>
 
+#include <filesystem>
 #include <random>
 
 #include "framework/band_matrix.hpp"
 #include "linear/banded_lu.hpp"
+#include "linear/lapack_info.hpp"
 
 using namespace weft;
 
@@ -118,5 +120,15 @@ TEST_SUITE("linear") {
     // A later nonsingular factorisation succeeds and clears the message.
     REQUIRE(lu.factorize(rod_structured(30, true, 1e-2, 22)) == Status::success);
     CHECK(lu.message().empty());
+  }
+
+  TEST_CASE("banded lu: the LAPACK library it runs on is named by a path that exists") {
+    // Recorded in every run's summary.json and bench header: reference LAPACK and OpenBLAS
+    // round differently, and a chaotic run follows whichever liblapack.so.3 points to.
+    const std::string lib = linear::lapack_library();
+    MESSAGE("LAPACK: " << lib);
+    CHECK(lib != "unknown");
+    CHECK(std::filesystem::exists(lib));
+    CHECK(lib.find("lapack") != std::string::npos);
   }
 }
