@@ -280,7 +280,12 @@ TEST_SUITE("slow") {
     for (size_t i = 0; i < lx.size(); ++i) sxy += (lx[i] - mx) * (ly[i] - my), sxx += (lx[i] - mx) * (lx[i] - mx);
     const double k = sxy / sxx;
     MESSAGE(fmt::format("refactored forces + Hessian, min time, one thread: fitted exponent k = {:.3f};{}", k, table));
-    CHECK(k <= 1.1);
+    // Linear work gives k = 1 only while H stays in cache. H of the 81 x 81 grid is about 6 MB:
+    // on an Intel Xeon with 2 MB of L2 the fit gave 1.110-1.117 idle and 1.161 beside a test run
+    // (2026-11-28), where 1.1 had held on an AMD EPYC. The bound catches quadratic work (a search
+    // over the hinges per hinge fits 2). Over this range n log n fits about 1.15, as cache growth
+    // does, so timing cannot tell them apart: the operation count is linear by construction.
+    CHECK(k <= 1.25);
     CHECK(slower == 0);
   }
 }
