@@ -5,6 +5,8 @@
 #include <fstream>
 #include <thread>
 
+#include "linear/lapack_info.hpp"
+
 #ifndef WEFT_SOURCE_DIR
 #define WEFT_SOURCE_DIR ""
 #endif
@@ -62,6 +64,7 @@ Json meta_record(std::string_view bench, const std::string& git, const std::stri
           {"flags", build_flags()},
           {"cpu", cpu},
           {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
+          {"lapack", linear::lapack_library()},
           {"threads", threads}};
 }
 

@@ -1,4 +1,3 @@
-#include "linear/lapack_info.hpp"
 #include "apps/bench_hair.hpp"
 
 #include <fmt/format.h>
@@ -29,6 +28,7 @@
 #include "framework/error.hpp"
 #include "framework/params_json.hpp"
 #include "framework/scene.hpp"
+#include "linear/lapack_info.hpp"
 #include "policies/registry.hpp"
 #include "policies/rod_presets.hpp"
 
@@ -431,7 +431,6 @@ int bench_hair(const BenchHairOptions& opt) {
   csv.flush();
   Json meta = meta_record("hair", git, cpu, threads);
   meta.update(Json{{"scene", scene_path},
-             {"lapack", linear::lapack_library()},
              {"rods", rods},
              {"overrides", opt.overrides},
              {"strategies", strategies},

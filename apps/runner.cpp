@@ -1,4 +1,3 @@
-#include "linear/lapack_info.hpp"
 #include "apps/runner.hpp"
 
 #include <fmt/format.h>
@@ -20,6 +19,7 @@
 #include "framework/obj_io.hpp"
 #include "framework/reports.hpp"
 #include "framework/writers.hpp"
+#include "linear/lapack_info.hpp"
 #include "policies/registry.hpp"
 
 namespace weft::app {

@@ -3,12 +3,11 @@
 #include <dlfcn.h>
 #include <fmt/format.h>
 
-#include <climits>
-#include <cstdlib>
-
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstddef>
+#include <cstdlib>
 
 #include "framework/error.hpp"
 #include "linear/lapack_info.hpp"

@@ -8,8 +8,9 @@ cd "$(dirname "$0")/.."
 # LAPACK and OpenBLAS round differently. A hair ball or a whip is chaotic over hundreds of
 # steps, so which one liblapack.so.3 points to decides which step a marginal run fails at:
 # two default-suite tests passed on OpenBLAS and failed on reference LAPACK (2026-11-28).
-# Installing it here gives every build (default, back ends, slow) the same LAPACK; results
-# were then bitwise identical on an Intel Xeon and an AMD EPYC.
+# Installing it here gives every build (default, back ends, slow) the same LAPACK; with it,
+# V-21's first 8 steps matched an AMD EPYC record bitwise on an Intel Xeon
+# (bench/results/rods/lapack/).
 PACKAGES=(cmake ninja-build g++ ccache pkg-config
           libeigen3-dev libboost-dev libfmt-dev doctest-dev
           nlohmann-json3-dev libtinyobjloader-dev libcli11-dev libspdlog-dev
