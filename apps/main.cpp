@@ -41,8 +41,14 @@ int main(int argc, char** argv) {
   cmd_run->add_flag("--progress", bar, "always draw a progress bar");
   cmd_run->add_flag("--plain", plain, "plain progress lines (default when stderr is not a terminal)");
   cmd_run->add_flag("-q,--quiet", run.quiet, "no progress output");
+  cmd_run->add_option("--checkpoint-every", run.checkpoint_every,
+                      "write the state to OUT/checkpoint.wckp every N frames and at the last (rod combinations; they also write "
+                      "it when interrupted, and OUT/failed_step.wckp, the state at the start of a failing step)");
+  cmd_run->add_option("--resume", run.resume,
+                      "continue from a checkpoint (.wckp) to the scene's end, bitwise as if never stopped; the scene and overrides "
+                      "may differ from the run that wrote it (e.g. another strategy) as long as the rods match");
   cmd_run->footer(
-      "Exit codes: 0 success; 2 invalid scene or parameters (nothing written); 3 a step failed "
+      "Exit codes: 0 success; 2 invalid scene, parameters or checkpoint (nothing written); 3 a step failed "
       "(output up to the failure kept); 128+signal when interrupted.");
 
   std::string list_scene;

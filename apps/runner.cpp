@@ -10,12 +10,14 @@
 #include <omp.h>
 #endif
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <regex>
 
+#include "framework/checkpoint.hpp"
 #include "framework/obj_io.hpp"
 #include "framework/reports.hpp"
 #include "framework/writers.hpp"
@@ -32,9 +34,47 @@ namespace fs = std::filesystem;
 
 // Remove the files a previous run left, so frames of different runs never mix.
 void clear_previous_outputs(const fs::path& dir) {
-  static const std::regex pattern(R"((.+_\d{4,}\.(obj|vtp))|(.+\.pvd)|stats\.jsonl|summary\.json|scene\.json|.+\.tmp)");
+  static const std::regex pattern(
+      R"((.+_\d{4,}\.(obj|vtp))|(.+\.pvd)|stats\.jsonl|summary\.json|scene\.json|checkpoint\.wckp|failed_step\.wckp|.+\.tmp)");
   for (const auto& e : fs::directory_iterator(dir))
     if (e.is_regular_file() && std::regex_match(e.path().filename().string(), pattern)) fs::remove(e.path());
+}
+
+// On resume: remove the frames after `frame` and return the statistics lines of steps up to
+// `step` (stats.jsonl is rewritten with them), so that the directory holds one run.
+std::vector<std::string> clear_outputs_after(const fs::path& dir, int frame, long long step) {
+  static const std::regex pattern(R"(.+_(\d{4,})\.(obj|vtp))");
+  std::smatch m;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_regular_file() && std::regex_match(name, m, pattern) && std::stoll(m[1].str()) > frame) fs::remove(e.path());
+  }
+  std::vector<std::string> kept;
+  std::ifstream in(dir / "stats.jsonl");
+  for (std::string line; std::getline(in, line);) {
+    const Json j = Json::parse(line, nullptr, false);
+    if (j.is_object() && j.contains("step") && j["step"].is_number_integer() && j["step"].get<long long>() <= step) kept.push_back(line);
+  }
+  return kept;
+}
+
+// The step a checkpoint's state ends, on this scene's step grid; throws ConfigError when its
+// time is not a multiple of time.dt or lies at or after the scene's end.
+long long resume_step(const Checkpoint& c, const Scene& scene, const std::string& path) {
+  const auto& time = scene.spec.time;
+  if (!c.header.contains("time") || !c.header["time"].is_number()) throw ConfigError(fmt::format("--resume {}: header has no 'time'", path));
+  const double t = c.header["time"].get<double>();
+  const long long k = std::llround(t / time.dt);
+  if (std::abs(static_cast<double>(k) * time.dt - t) > 1e-9 * std::max(t, time.dt))
+    throw ConfigError(fmt::format("--resume {}: its time t = {} s is not a multiple of time.dt = {} s (valid: the checkpoint's dt or a "
+                                  "divisor of its steps)",
+                                  path, t, time.dt));
+  const long long total = static_cast<long long>(time.num_frames()) * time.steps_per_frame();
+  if (k >= total)
+    throw ConfigError(fmt::format("--resume {}: its time t = {} s is at or after the scene's end (time.duration = {} s): nothing to run; "
+                                  "override time.duration to continue",
+                                  path, t, time.duration));
+  return k;
 }
 
 // Triangulated obstacle surface at time t, for output only.
@@ -100,6 +140,18 @@ class FrameWriter {
       names_.push_back(spec.cloths.size() == 1 ? spec.cloths[c].name : fmt::format("{}{}", spec.cloths[c].name, c));
     }
     if (spec.output.vtp) pvd_.emplace((dir_ / "frames.pvd").string());
+  }
+  /// List frame `k`'s files already on disk (written before a resume) in the .pvd series.
+  void adopt(int k, double t) {
+    if (!pvd_) return;
+    const auto& spec = scene_.spec;
+    const auto add = [&](const std::string& base, int part) {
+      if (fs::exists(dir_ / (base + ".vtp"))) pvd_->add(t, base + ".vtp", part);
+    };
+    for (size_t c = 0; c < faces_.size(); ++c) add(fmt::format("{}_{:04d}", names_[c], k), static_cast<int>(c));
+    const int parts = static_cast<int>(faces_.size()) + (spec.rods.empty() ? 0 : 1);
+    if (!spec.rods.empty()) add(fmt::format("rods_{:04d}", k), static_cast<int>(faces_.size()));
+    for (size_t o = 0; o < spec.obstacles.size(); ++o) add(fmt::format("{}{}_{:04d}", spec.obstacles[o].name, o, k), parts + static_cast<int>(o));
   }
   /// Write frame `k` of the current state; returns the number of files written.
   int write(int k, const State& s) {
@@ -185,19 +237,46 @@ class Progress {
 
 int run_scene(const RunOptions& opt) {
   const auto wall_start = std::chrono::steady_clock::now();
-  // 1. Validate everything before touching the output directory.
+  // 1. Validate everything before touching the output directory: the scene, the
+  //    checkpoint options, and the checkpoint to resume from.
   std::unique_ptr<AnySimulator> sim;
+  std::optional<Checkpoint> resumed;
+  long long step0 = 0;
   try {
     sim = make_simulator(load_scene(opt.scene, opt.overrides));
+    if (opt.checkpoint_every < 0)
+      throw ConfigError(fmt::format("--checkpoint-every {}: must be a number of frames >= 1 (0: none)", opt.checkpoint_every));
+    if ((opt.checkpoint_every > 0 || !opt.resume.empty()) && !sim->checkpoint_unsupported().empty())
+      throw ConfigError(fmt::format("{} {}: {}", opt.resume.empty() ? "--checkpoint-every" : "--resume",
+                                    opt.resume.empty() ? std::to_string(opt.checkpoint_every) : opt.resume, sim->checkpoint_unsupported()));
+    if (!opt.resume.empty()) {
+      resumed = read_checkpoint(opt.resume);
+      step0 = resume_step(*resumed, sim->scene(), opt.resume);
+      resumed->header["step"] = step0;
+      try {
+        sim->restore(*resumed);
+      } catch (const ConfigError& e) {
+        throw ConfigError(fmt::format("--resume {}: {}", opt.resume, e.what()));
+      }
+    }
   } catch (const ConfigError& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return exit_config;
   }
   const Scene& scene = sim->scene();
+  const auto& time = scene.spec.time;
+  const int spf = time.steps_per_frame(), frames = time.num_frames();
+  const int every = scene.spec.output.every;
+  const int frame0 = static_cast<int>(step0 / spf);  // the last frame the checkpoint's state completes
   const fs::path dir = opt.out_dir.empty() ? fs::path("out") : fs::path(opt.out_dir);
+  std::vector<std::string> kept_stats;  // on resume: the lines of the steps before the checkpoint
   try {
     fs::create_directories(dir);
-    clear_previous_outputs(dir);
+    if (resumed) {
+      kept_stats = clear_outputs_after(dir, frame0, step0);
+    } else {
+      clear_previous_outputs(dir);
+    }
   } catch (const fs::filesystem_error& e) {
     fmt::print(stderr, "error: cannot prepare output directory {}: {}\n", dir.string(), e.what());
     return exit_config;
@@ -215,86 +294,116 @@ int run_scene(const RunOptions& opt) {
   auto old_int = std::signal(SIGINT, on_signal);
   auto old_term = std::signal(SIGTERM, on_signal);
 
-  const auto& time = scene.spec.time;
-  const int spf = time.steps_per_frame(), frames = time.num_frames();
-  const int every = scene.spec.output.every;
   FrameWriter writer(scene, dir);
   std::optional<StatsWriter> stats;
-  if (scene.spec.output.stats) stats.emplace((dir / "stats.jsonl").string());
-  Progress progress(frames, opt.progress, opt.quiet);
+  if (scene.spec.output.stats) {
+    stats.emplace((dir / "stats.jsonl").string());
+    for (const auto& line : kept_stats) stats->write_line(line);
+  }
+  Progress progress(frames - frame0, opt.progress, opt.quiet);
+  const bool checkpoints = sim->checkpoint_unsupported().empty();
 
-  if (!opt.quiet)
+  if (!opt.quiet) {
     if (scene.spec.rods.empty())
       spdlog::info("{}: {} vertices, {} faces, {} hinges; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene,
                    scene.mesh.num_vertices(), scene.mesh.num_faces(), scene.mesh.num_hinges(), sim->combo(), time.dt, spf, frames);
     else
       spdlog::info("{}: {} rods, {} vertices; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene, scene.rods.num_rods(),
                    scene.rods.num_vertices(), sim->combo(), time.dt, spf, frames);
+    if (resumed)
+      spdlog::info("resumed from {} at step {} (t = {} s), written by combo {}", opt.resume, step0, sim->state().t,
+                   resumed->header.value("combo", "?"));
+  }
 
-  int files = writer.write(0, sim->state());
-  int frames_written = 1, steps = 0;
+  int files = 0, frames_written = 0, steps = 0;
+  for (int k = 0; k < frame0; ++k) writer.adopt(k, static_cast<double>(k) * spf * time.dt);  // resumed: frames on disk stay in the .pvd
+  if (step0 % spf == 0)
+    files += writer.write(frame0, sim->state()), ++frames_written;
+  else
+    writer.adopt(frame0, static_cast<double>(frame0) * spf * time.dt);
   long newton_total = 0, linear_total = 0;
   int newton_max = 0;
   StageTimes stage_total;
   std::string status = "completed";
   Json failure;
   int code = exit_ok;
-  for (int f = 1; f <= frames && code == exit_ok; ++f) {
-    for (int k = 0; k < spf; ++k) {
-      if (const int sig = g_signal.load()) {
-        status = "interrupted";
-        failure = {{"signal", sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : std::to_string(sig)},
-                   {"after_step", steps}, {"time", sim->state().t}};
-        code = 128 + sig;
-        break;
-      }
-      StepReport rep;
-      try {
-        rep = sim->step();
-      } catch (const std::exception& e) {
-        // A policy's invariant broke (a bug, not an input error): report it like any failed
-        // step so that every frame and statistic written so far stays intact.
-        rep.step = steps + 1;
-        rep.time = sim->state().t + time.dt;
-        rep.dt = time.dt;
-        rep.status = Status::numerical_issue;
-        rep.failed_stage = "internal";
-        rep.message = fmt::format("internal error: {}", e.what());
-      }
-      ++steps;
-      newton_total += rep.newton.iterations;
-      newton_max = std::max(newton_max, rep.newton.iterations);
-      linear_total += rep.linear.iterations;
-      {
-        ScopedTimer t(rep.times, Stage::output);
-        if (stats) stats->write(to_json(rep));
-      }
-      stage_total += rep.times;
-      if (!rep.ok()) {
-        status = "failed";
-        failure = {{"step", rep.step}, {"time", rep.time}, {"stage", rep.failed_stage},
-                   {"status", to_string(rep.status)}, {"reason", rep.message}};
-        progress.finish_line();
-        fmt::print(stderr, "error: step {} (t = {} s) failed in stage '{}': {}: {}\n", rep.step, rep.time, rep.failed_stage,
-                   to_string(rep.status), rep.message);
-        code = exit_failed;
-        break;
-      }
+  const auto save = [&](const Checkpoint& c, const char* name) {
+    Checkpoint k = c;
+    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}};
+    write_checkpoint((dir / name).string(), k);
+    return std::string(name);
+  };
+  const long long total = static_cast<long long>(frames) * spf;
+  for (long long s = step0 + 1; s <= total; ++s) {
+    if (const int sig = g_signal.load()) {
+      status = "interrupted";
+      failure = {{"signal", sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : std::to_string(sig)},
+                 {"after_step", s - 1}, {"time", sim->state().t}};
+      if (checkpoints) failure["checkpoint"] = save(sim->checkpoint(), "checkpoint.wckp");
+      code = 128 + sig;
+      break;
     }
-    if (code != exit_ok) break;
+    std::optional<Checkpoint> before;  // the state at the start of the step, kept for a failure
+    if (checkpoints) before = sim->checkpoint();
+    StepReport rep;
+    try {
+      rep = sim->step();
+    } catch (const std::exception& e) {
+      // A policy's invariant broke (a bug, not an input error): report it like any failed
+      // step so that every frame and statistic written so far stays intact.
+      rep.step = static_cast<int>(s);
+      rep.time = sim->state().t + time.dt;
+      rep.dt = time.dt;
+      rep.status = Status::numerical_issue;
+      rep.failed_stage = "internal";
+      rep.message = fmt::format("internal error: {}", e.what());
+    }
+    ++steps;
+    newton_total += rep.newton.iterations;
+    newton_max = std::max(newton_max, rep.newton.iterations);
+    linear_total += rep.linear.iterations;
+    {
+      ScopedTimer t(rep.times, Stage::output);
+      if (stats) stats->write(to_json(rep));
+    }
+    stage_total += rep.times;
+    if (!rep.ok()) {
+      status = "failed";
+      failure = {{"step", rep.step}, {"time", rep.time}, {"stage", rep.failed_stage},
+                 {"status", to_string(rep.status)}, {"reason", rep.message}};
+      if (before) failure["checkpoint"] = save(*before, "failed_step.wckp");
+      progress.finish_line();
+      fmt::print(stderr, "error: step {} (t = {} s) failed in stage '{}': {}: {}\n", rep.step, rep.time, rep.failed_stage,
+                 to_string(rep.status), rep.message);
+      if (before) {
+        std::string command = "weft run " + opt.scene;
+        for (const auto& o : opt.overrides) command += " " + o;
+        const std::string file = (dir / "failed_step.wckp").string();
+        fmt::print(stderr, "the state at the start of step {} is in {}; `{} --resume {} -o OTHER_DIR` replays it\n", rep.step, file, command, file);
+      }
+      code = exit_failed;
+      break;
+    }
+    if (s % spf != 0) continue;
+    const int f = static_cast<int>(s / spf);
     if (f % every == 0 || f == frames) {
       ScopedTimer t(stage_total, Stage::output);
       files += writer.write(f, sim->state());
       ++frames_written;
     }
-    progress.update(f, sim->state().t, steps);
+    if (opt.checkpoint_every > 0 && (f % opt.checkpoint_every == 0 || f == frames)) {
+      ScopedTimer t(stage_total, Stage::output);
+      save(sim->checkpoint(), "checkpoint.wckp");
+    }
+    progress.update(f - frame0, sim->state().t, steps);
   }
   std::signal(SIGINT, old_int);
   std::signal(SIGTERM, old_term);
   if (status == "interrupted") {
     progress.finish_line();
-    fmt::print(stderr, "interrupted by {} after {} steps; output up to t = {} s is intact\n",
-               failure["signal"].get<std::string>(), steps, sim->state().t);
+    fmt::print(stderr, "interrupted by {} after {} steps; output up to t = {} s is intact{}\n", failure["signal"].get<std::string>(),
+               step0 + steps, sim->state().t,
+               checkpoints ? fmt::format("; `--resume {}` continues", (dir / "checkpoint.wckp").string()) : std::string());
   }
 
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -308,8 +417,8 @@ int run_scene(const RunOptions& opt) {
                {"rods", scene.rods.num_rods()},
                {"faces", scene.mesh.num_faces()},
                {"dt", time.dt},
-               {"steps", steps},
-               {"steps_planned", frames * spf},
+               {"steps", step0 + steps},
+               {"steps_planned", total},
                {"frames_written", frames_written},
                {"files_written", files},
                {"simulated_time", sim->state().t},
@@ -328,6 +437,9 @@ int run_scene(const RunOptions& opt) {
 #endif
                }};
   if (!failure.is_null()) summary["failure"] = failure;
+  if (resumed)
+    summary["resumed_from"] = {{"checkpoint", opt.resume}, {"step", step0}, {"time", resumed->header["time"]},
+                               {"combo", resumed->header.value("combo", "?")}, {"steps_run", steps}};
   write_json_file((dir / "summary.json").string(), summary);
   if (!opt.quiet && code == exit_ok)
     spdlog::info("done: {} steps in {:.2f} s ({:.2f} ms/step), Newton {:.2f}/step (max {}), output in {}", steps, wall,

@@ -22,6 +22,8 @@ struct RunOptions {
   std::vector<std::string> overrides;
   int progress = -1;                 ///< -1: bar if stderr is a terminal; 0: plain lines; 1: bar
   bool quiet = false;
+  int checkpoint_every = 0;          ///< write checkpoint.wckp every this many frames (0: only on interrupt and failure)
+  std::string resume;                ///< checkpoint to continue from ("" = start at t = 0)
 };
 
 /// Runs a scene; returns the exit code. Messages go to stderr.

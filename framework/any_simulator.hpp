@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "framework/checkpoint.hpp"
 #include "framework/params_json.hpp"
 #include "framework/simulator.hpp"
 
@@ -22,6 +23,21 @@ class AnySimulator {
   /// Effective parameters (SI), as a JSON tree mirroring the scene's solver sections.
   virtual Json params() const = 0;
   virtual std::string_view combo() const = 0;
+  /// "" when this combination writes and reads checkpoints (framework/checkpoint.hpp); else why not.
+  virtual std::string checkpoint_unsupported() const = 0;
+  /// The state between two steps, to the bit (header: "kind", "step", "time", sizes, "combo").
+  /// Throws ConfigError when checkpoint_unsupported() is not empty.
+  virtual Checkpoint checkpoint() const = 0;
+  /// Continue from a checkpoint. Throws ConfigError (state unchanged) when it does not fit
+  /// this scene, or when checkpoint_unsupported() is not empty.
+  virtual void restore(const Checkpoint& c) = 0;
+};
+
+/// A simulator that writes and reads checkpoints.
+template <class Sim>
+concept Checkpointable = requires(const Sim& s, Sim& m, Checkpoint& c) {
+  s.save(c);
+  m.restore(c);
 };
 
 template <class Sim>
@@ -36,6 +52,30 @@ class SimulatorAdapter final : public AnySimulator {
   Eigen::VectorXd potential_gradient() const override { return sim_.potential_gradient(); }
   Json params() const override { return write_params(sim_.params()); }
   std::string_view combo() const override { return combo_; }
+  std::string checkpoint_unsupported() const override {
+    if constexpr (Checkpointable<Sim>)
+      return "";
+    else
+      return fmt::format("combination {} does not write checkpoints: its cloth policies keep state between steps (contact sets, "
+                         "repulsion springs, warm starts) that checkpoints do not hold yet; rod combinations do",
+                         combo_);
+  }
+  Checkpoint checkpoint() const override {
+    if constexpr (Checkpointable<Sim>) {
+      Checkpoint c;
+      sim_.save(c);
+      c.header["combo"] = std::string(combo_);
+      return c;
+    } else {
+      throw ConfigError(checkpoint_unsupported());
+    }
+  }
+  void restore(const Checkpoint& c) override {
+    if constexpr (Checkpointable<Sim>)
+      sim_.restore(c);
+    else
+      throw ConfigError(checkpoint_unsupported());
+  }
   Sim& simulator() { return sim_; }
 
  private:

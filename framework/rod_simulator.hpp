@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "framework/band_matrix.hpp"
+#include "framework/checkpoint.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params_json.hpp"
 #include "framework/scene.hpp"
@@ -191,6 +192,76 @@ class RodSimulator {
   const Scene& scene() const { return scene_; }
   const Params& params() const { return prm_; }
   const Contact& contact() const { return contact_; }
+
+  /// The state between two steps, to the bit: time, step count and, per rod, its DoFs,
+  /// their rates and the reference frames (everything a step reads from the last one: the
+  /// contact strategies and the rod integrator start every step afresh, and the viscous rest
+  /// shape is taken from q and the frames at the step's start).
+  void save(Checkpoint& c) const {
+    std::vector<double> q, v, tangent, director, twist;
+    Json dofs = Json::array();
+    for (const Body& b : bodies_) {
+      q.insert(q.end(), b.q.data(), b.q.data() + b.q.size());
+      v.insert(v.end(), b.v.data(), b.v.data() + b.v.size());
+      for (size_t j = 0; j < b.frames.tangent.size(); ++j)
+        for (int k = 0; k < 3; ++k) tangent.push_back(b.frames.tangent[j][k]), director.push_back(b.frames.director[j][k]);
+      twist.insert(twist.end(), b.frames.reference_twist.begin(), b.frames.reference_twist.end());
+      dofs.push_back(b.q.size());
+    }
+    c.header["kind"] = "rods";
+    c.header["step"] = steps_;
+    c.header["time"] = centre_.t;
+    c.header["rod_dofs"] = dofs;
+    c.put("q", std::move(q));
+    c.put("v", std::move(v));
+    c.put("tangent", std::move(tangent));
+    c.put("director", std::move(director));
+    c.put("reference_twist", std::move(twist));
+  }
+  /// Continue from a state `save` wrote, with this scene's rods, motions and parameters
+  /// (they may differ from the run that wrote it, e.g. to replay a failing step with
+  /// another strategy; the rods' DoF counts must match). Throws ConfigError naming what
+  /// does not match; the state is unchanged then.
+  void restore(const Checkpoint& c) {
+    const Json& h = c.header;
+    if (h.value("kind", "") != "rods")
+      throw ConfigError(fmt::format("checkpoint holds a '{}' state; this combination simulates rods", h.value("kind", "?")));
+    if (!h.contains("step") || !h["step"].is_number_integer() || !h.contains("time") || !h["time"].is_number() || !h.contains("rod_dofs") ||
+        !h["rod_dofs"].is_array())
+      throw ConfigError("checkpoint header lacks 'step', 'time' or 'rod_dofs'");
+    const Json& dofs = h["rod_dofs"];
+    if (dofs.size() != bodies_.size())
+      throw ConfigError(fmt::format("checkpoint holds {} rod(s); this scene has {}", dofs.size(), bodies_.size()));
+    long long n = 0, edges = 0, interior = 0;
+    for (size_t r = 0; r < bodies_.size(); ++r) {
+      const auto nr = bodies_[r].q.size();
+      if (!dofs[r].is_number_integer() || dofs[r].get<long long>() != nr)
+        throw ConfigError(fmt::format("checkpoint rod {} has {} DoFs; this scene's rod {} has {} ({} vertices)", r, dofs[r].dump(), r, nr,
+                                      bodies_[r].num_vertices()));
+      n += nr, edges += bodies_[r].num_vertices() - 1, interior += bodies_[r].num_vertices() - 2;
+    }
+    const auto& q = c.get("q", n);
+    const auto& v = c.get("v", n);
+    const auto& tangent = c.get("tangent", 3 * edges);
+    const auto& director = c.get("director", 3 * edges);
+    const auto& twist = c.get("reference_twist", interior);
+    size_t iq = 0, ie = 0, it = 0;
+    for (Body& b : bodies_) {
+      const auto nr = b.q.size();
+      b.q = Eigen::Map<const Eigen::VectorXd>(q.data() + iq, nr);
+      b.v = Eigen::Map<const Eigen::VectorXd>(v.data() + iq, nr);
+      iq += nr;
+      for (size_t j = 0; j < b.frames.tangent.size(); ++j, ie += 3) {
+        b.frames.tangent[j] = Eigen::Vector3d(tangent[ie], tangent[ie + 1], tangent[ie + 2]);
+        b.frames.director[j] = Eigen::Vector3d(director[ie], director[ie + 1], director[ie + 2]);
+      }
+      for (double& w : b.frames.reference_twist) w = twist[it++];
+      b.d.setZero();
+    }
+    steps_ = h["step"].get<int>();
+    centre_.t = h["time"].get<double>();
+    sync_centrelines();
+  }
 
   /// Kinetic (translation and twist) and potential energies: the model's terms summed over
   /// the rods (in the model's order), then gravity.

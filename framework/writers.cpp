@@ -110,8 +110,10 @@ StatsWriter::StatsWriter(const std::string& path) : out_(path, std::ios::out | s
   if (!out_) throw std::runtime_error(fmt::format("cannot write {}", path));
 }
 
-void StatsWriter::write(const Json& line) {
-  out_ << line.dump() << '\n';
+void StatsWriter::write(const Json& line) { write_line(line.dump()); }
+
+void StatsWriter::write_line(const std::string& line) {
+  out_ << line << '\n';
   out_.flush();
 }
 

@@ -61,6 +61,8 @@ class StatsWriter {
  public:
   explicit StatsWriter(const std::string& path);
   void write(const Json& line);
+  /// A line already serialised (e.g. kept from an earlier run on resume).
+  void write_line(const std::string& line);
 
  private:
   std::ofstream out_;

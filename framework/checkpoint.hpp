@@ -1,0 +1,44 @@
+#pragma once
+/// \file checkpoint.hpp
+/// Checkpoints: a simulator's state between two steps, exact to the bit, so that a run
+/// resumes (`weft run --resume`) or a failing step replays with the same arithmetic.
+///
+/// File format (version 1), little-endian:
+///   8 bytes  "WEFTCKPT"
+///   8 bytes  uint64, length H of the header
+///   H bytes  JSON header: {"format": 1, "arrays": [{"name", "size"}, ...], ...}; the other
+///            keys belong to the writer (the simulator's "step", "time", "combo", sizes, and
+///            `weft run`'s counters under "run")
+///   then the arrays in header order, each `size` float64 values.
+/// A reader in another language needs only the header: numpy.fromfile(f, '<f8', offset=16 + H).
+#include <Eigen/Core>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "framework/params_json.hpp"
+
+namespace weft {
+
+struct Checkpoint {
+  static constexpr int format = 1;
+  Json header = Json::object();                                   ///< writer's keys ("arrays" and "format" are added on write)
+  std::vector<std::pair<std::string, std::vector<double>>> arrays;  ///< named float64 arrays, in file order
+
+  /// Append an array (names must be unique).
+  void put(std::string name, std::vector<double> values);
+  void put(std::string name, const Eigen::VectorXd& values) { put(std::move(name), std::vector<double>(values.data(), values.data() + values.size())); }
+  /// The array `name`; throws ConfigError naming the array when it is missing or when
+  /// `expected_size` >= 0 and its size differs.
+  const std::vector<double>& get(const std::string& name, long long expected_size = -1) const;
+  bool has(const std::string& name) const;
+};
+
+/// Write atomically (a temporary file renamed when complete); throws std::runtime_error on I/O failure.
+void write_checkpoint(const std::string& path, const Checkpoint& c);
+/// Read a checkpoint; throws ConfigError naming the file and what is wrong (missing file,
+/// not a checkpoint, unknown format version, header that does not parse, truncated data).
+Checkpoint read_checkpoint(const std::string& path);
+
+}  // namespace weft
