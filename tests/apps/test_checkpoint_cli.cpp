@@ -1,0 +1,133 @@
+// `weft run --checkpoint-every` / `--resume` and the failed-step checkpoint, as a user runs
+// them: a run stopped (by its duration, by SIGINT, by a failing step) and resumed writes the
+// same frames and energies as the run that never stopped; bad checkpoint input is refused
+// with exit code 2 before anything is written.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <regex>
+
+#include "cli_support.hpp"
+
+using namespace weft::test;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+const std::string whip = std::string(WEFT_SOURCE_DIR) + "/scenes/whip_edge.json";
+
+int pvd_entries(const fs::path& pvd) {
+  const std::string text = slurp(pvd);
+  const std::regex re("<DataSet ");
+  return static_cast<int>(std::distance(std::sregex_iterator(text.begin(), text.end(), re), std::sregex_iterator()));
+}
+}  // namespace
+
+TEST_SUITE("apps") {
+  TEST_CASE("run: a run resumed from --checkpoint-every writes the frames and energies of the run that never stopped") {
+    const auto dir = temp_dir("checkpoint_resume");
+    const auto full = dir / "full", part = dir / "part";
+    const Result a = run_weft(fmt::format("run {} time.duration=0.2 -q -o {}", whip, full.string()));
+    REQUIRE_MESSAGE(a.code == 0, a.output);
+    const Result b = run_weft(fmt::format("run {} time.duration=0.1 -q --checkpoint-every 5 -o {}", whip, part.string()));
+    REQUIRE_MESSAGE(b.code == 0, b.output);
+    REQUIRE(fs::exists(part / "checkpoint.wckp"));
+    // Resume into the same directory: the first half's frames and statistics stay.
+    const Result c = run_weft(fmt::format("run {} time.duration=0.2 --resume {} -o {}", whip, (part / "checkpoint.wckp").string(), part.string()));
+    CAPTURE(c.output);
+    REQUIRE(c.code == 0);
+    CHECK(c.output.find("resumed from") != std::string::npos);
+    for (const char* frame : {"rods_0005.obj", "rods_0007.obj", "rods_0010.obj"}) {
+      CAPTURE(frame);
+      CHECK(slurp(full / frame) == slurp(part / frame));  // positions written with round-trip precision
+    }
+    const auto sa = read_jsonl(full / "stats.jsonl"), sb = read_jsonl(part / "stats.jsonl");
+    REQUIRE(sa.size() == 200);
+    REQUIRE(sb.size() == 200);
+    int contacts = 0;
+    for (size_t k = 0; k < sa.size(); ++k) {
+      CAPTURE(k);
+      CHECK(sb[k]["step"] == k + 1);
+      CHECK(sb[k]["energy"] == sa[k]["energy"]);
+      contacts += sb[k]["contact"]["contacts"].get<int>();
+    }
+    CHECK(contacts > 0);  // the whip strikes the edge
+    CHECK(pvd_entries(part / "frames.pvd") == pvd_entries(full / "frames.pvd"));
+    const json summary = json::parse(slurp(part / "summary.json"));
+    CHECK(summary["status"] == "completed");
+    CHECK(summary["steps"] == 200);
+    CHECK(summary["resumed_from"]["step"] == 100);
+    CHECK(summary["resumed_from"]["steps_run"] == 100);
+    CHECK(summary["final_energy"] == json::parse(slurp(full / "summary.json"))["final_energy"]);
+  }
+
+  TEST_CASE("run: SIGINT writes a checkpoint from which the run continues bitwise") {
+    const auto dir = temp_dir("checkpoint_sigint");
+    const auto stopped = dir / "stopped";
+    const Result r = run_weft(fmt::format("run {} time.duration=1000 -o {}", whip, stopped.string()), "timeout --preserve-status -s INT 2");
+    CAPTURE(r.output);
+    REQUIRE(r.code == 130);
+    const json s = json::parse(slurp(stopped / "summary.json"));
+    CHECK(s["failure"]["checkpoint"] == "checkpoint.wckp");
+    const int steps = s["steps"];
+    REQUIRE(steps > 20);
+    // Continue to two frames past the interruption, and compare with a run that never stopped.
+    const double end = 0.02 * (std::floor(steps / 20) + 2);
+    const Result c = run_weft(fmt::format("run {} time.duration={} -q --resume {} -o {}", whip, end, (stopped / "checkpoint.wckp").string(),
+                                          (dir / "continued").string()));
+    REQUIRE_MESSAGE(c.code == 0, c.output);
+    const Result f = run_weft(fmt::format("run {} time.duration={} -q -o {}", whip, end, (dir / "full").string()));
+    REQUIRE_MESSAGE(f.code == 0, f.output);
+    const json a = json::parse(slurp(dir / "continued" / "summary.json")), b = json::parse(slurp(dir / "full" / "summary.json"));
+    CHECK(a["resumed_from"]["step"] == steps);
+    CHECK(a["steps"] == b["steps"]);
+    CHECK(a["final_energy"] == b["final_energy"]);
+    const std::string last = fmt::format("rods_{:04d}.obj", static_cast<int>(std::lround(end / 0.02)));
+    CHECK(slurp(dir / "continued" / last) == slurp(dir / "full" / last));
+  }
+
+  TEST_CASE("run: a failing rod step leaves failed_step.wckp, which replays the failure in one step") {
+    const auto dir = temp_dir("checkpoint_failed");
+    // Two Newton iterations are too few for the rod DEL of the first step.
+    const Result r = run_weft(fmt::format("run {} time.duration=0.1 integrator.max_iterations=2 -o {}", whip, (dir / "a").string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 3);
+    CHECK(r.output.find("replays it") != std::string::npos);
+    const json s = json::parse(slurp(dir / "a" / "summary.json"));
+    CHECK(s["failure"]["checkpoint"] == "failed_step.wckp");
+    const Result replay = run_weft(fmt::format("run {} time.duration=0.1 integrator.max_iterations=2 --resume {} -o {}", whip,
+                                               (dir / "a" / "failed_step.wckp").string(), (dir / "b").string()));
+    CHECK(replay.code == 3);
+    const json t = json::parse(slurp(dir / "b" / "summary.json"));
+    CHECK(t["failure"]["step"] == s["failure"]["step"]);
+    CHECK(t["failure"]["reason"] == s["failure"]["reason"]);
+    CHECK(t["resumed_from"]["steps_run"] == 1);  // the failing step alone
+    // With enough iterations the same state goes on.
+    const Result fixed = run_weft(fmt::format("run {} time.duration=0.1 -q --resume {} -o {}", whip, (dir / "a" / "failed_step.wckp").string(),
+                                              (dir / "c").string()));
+    CHECK_MESSAGE(fixed.code == 0, fixed.output);
+  }
+
+  TEST_CASE("run: checkpoint options that cannot work are refused with exit code 2 before anything is written") {
+    const auto dir = temp_dir("checkpoint_refused");
+    const auto out = dir / "out";
+    const auto refused = [&](const std::string& args, const std::string& fault) {
+      const Result r = run_weft(args + " -o " + out.string());
+      CAPTURE(r.output);
+      CHECK(r.code == 2);
+      CHECK(r.output.find(fault) != std::string::npos);
+      CHECK(!fs::exists(out));
+    };
+    const std::string cloth = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
+    refused(fmt::format("run {} --checkpoint-every 2", cloth), "does not write checkpoints");
+    refused(fmt::format("run {} --checkpoint-every -1", whip), "--checkpoint-every -1: must be a number of frames >= 1 (0: none)");
+    refused(fmt::format("run {} --resume {}", whip, whip), "not a weft checkpoint");
+    refused(fmt::format("run {} --resume {}", whip, (dir / "none.wckp").string()), "cannot open the file");
+    // A checkpoint at the scene's end, and one of other rods.
+    const Result end = run_weft(fmt::format("run {} time.duration=0.04 -q --checkpoint-every 1 -o {}", whip, (dir / "end").string()));
+    REQUIRE(end.code == 0);
+    const std::string at_end = (dir / "end" / "checkpoint.wckp").string();
+    refused(fmt::format("run {} time.duration=0.04 --resume {}", whip, at_end), "at or after the scene's end (time.duration = 0.04 s)");
+    refused(fmt::format("run {} rods.0.vertices=40 --resume {}", whip, at_end), "checkpoint rod 0 has 119 DoFs; this scene's rod 0 has 159");
+  }
+}
