@@ -329,7 +329,7 @@ int run_scene(const RunOptions& opt) {
   int code = exit_ok;
   const auto save = [&](const Checkpoint& c, const char* name) {
     Checkpoint k = c;
-    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}};
+    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"lapack", linear::lapack_library()}};
     write_checkpoint((dir / name).string(), k);
     return std::string(name);
   };
