@@ -46,6 +46,7 @@ struct RodContactRows {
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  ///< scripted part of u_k
   Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  ///< G_k^T D G_k
   Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
+  Eigen::Vector3d lambda_first = Eigen::Vector3d::Zero();  ///< lambda after the first constrained Newton iteration of the last round
   double mu = 0;
   double scale = 1;                          ///< coulomb_scale(W)
   bool follows = false;                      ///< an end-overlap contact that moves with its edge pair (contact.overlap_follow)

@@ -89,6 +89,17 @@ enum class PredictorUpdate {
 };
 inline constexpr std::array<std::string_view, 2> predictor_update_names = {"relinearized", "every_rod"};
 
+/// The multipliers a re-detection round starts its groups from. Every round restarts the
+/// groups from d_DEL, with K linearised there (the first constrained Newton iteration).
+enum class RoundStart {
+  last,   ///< those the last round ended with: balanced against the stiffnesses of its last
+          ///< iteration, re-linearised where rods stretched, not against the first linearisation
+  first,  ///< those after the last round's first constrained Newton iteration, which solved the
+          ///< same linearisation with the contacts known then
+  zero,   ///< none (a cold start)
+};
+inline constexpr std::array<std::string_view, 3> round_start_names = {"last", "first", "zero"};
+
 /// The solver of a group's contact problem (rod_group_solver.hpp): Gauss-Seidel up to
 /// `gs_max`, then with `newton` semismooth Newton to `contact_tol` (the step fails if it cannot).
 using contact::ContactSolver;
@@ -105,6 +116,7 @@ struct RodContactParams {
   HessianMode relinearization = HessianMode::exact;  ///< ADONIS, staggered projections: the Hessian of the re-linearisations
   bool projected_restart = true;  ///< relinearization = exact: a group whose iterate leaves the model's domain, or that reaches newton_max, starts again with projected re-linearisations
   PredictorUpdate predictor = PredictorUpdate::relinearized;  ///< ADONIS: which rods get a new predictor after the first iteration
+  RoundStart round_start = RoundStart::first;  ///< the multipliers a re-detection round starts from
   int sp_max = 100;            ///< staggered projections: alternations per Newton iteration
   double sp_tol = 1e-6;        ///< staggered projections: relative change of the multipliers that stops them (friction only with exact projections)
   double sp_inner = 0.1;       ///< staggered projections: a projection's sweeps stop when one changes the multipliers by less than sp_inner x its first did (0: exact projections)
@@ -140,6 +152,11 @@ struct RodContactParams {
              "relinearized (only the rods re-linearised in it; the others keep the linear model their stretch accepted) or "
              "every_rod (modified Newton with the stale K of the others: the thesis as printed, which runs away on the hair balls "
              "at 10 ms)");
+    v.choice("round_start", round_start, round_start_names,
+             "the multipliers each re-detection round starts its groups from (every round restarts them from d_DEL and K "
+             "linearised there): last (those the last round ended with, balanced against its re-linearised stiffnesses; applied "
+             "through the first, softer linearisation they can throw rods far), first (those after the last round's first "
+             "constrained Newton iteration, which solved that same linearisation) or zero (cold start)");
     v.field("limit_stretch", limit_stretch,
             {Unit::none, Range::any(),
              "ADONIS, staggered projections: halve a rod's constrained Newton step until it stays in the model's domain and its "
@@ -236,7 +253,9 @@ class RodResponse {
     // Detection on q -> q + d_DEL, then again on q -> q + d after each response: the
     // constraints are linearised, and a later Newton iteration (or the response of other
     // contacts through D) may carry a point that had no contact into an obstacle or a rod.
-    // New contacts join the set and every group is solved again from d_DEL (warm multipliers).
+    // New contacts join the set and every group is solved again from d_DEL, its multipliers
+    // warm from the last round (`round_start`: by default those of its first iteration, which
+    // solved the same linearisation at d_DEL).
     for (int round = 0; round <= prm_.redetections; ++round) {
       RodCurves curves;
       curves.first.assign(1, 0);
@@ -276,6 +295,7 @@ class RodResponse {
             contacts_.push_back(std::move(k));
           } else {  // the pair's contact moves; its multipliers stay as the warm start
             k.lambda = contacts_[o.follower].lambda;
+            k.lambda_first = contacts_[o.follower].lambda_first;
             contacts_[o.follower] = std::move(k);
           }
         }
@@ -291,6 +311,8 @@ class RodResponse {
         }
       }
       for (int r = 0; r < R; ++r) sys.body(r).d = del[r];
+      if (round > 0 && prm_.round_start != RoundStart::last)
+        for (auto& k : contacts_) k.lambda = prm_.round_start == RoundStart::first ? k.lambda_first : Eigen::Vector3d::Zero();
       std::vector<std::vector<int>> group_rods;
       const std::vector<std::vector<int>> groups = contact_groups(R, contacts_, group_rods, prm_.groups);
       stats_.assign(groups.size(), {});
@@ -716,6 +738,8 @@ class RodResponse {
         st.residual = nr.residual;
       }
       st.unconverged = st.residual > prm_.contact_tol;
+      if (outer == 1)
+        for (int id : ids) contacts_[id].lambda_first = contacts_[id].lambda;
       if (prm_.solver == ContactSolver::newton && st.unconverged) {
         for (size_t i = 0; i < rods.size(); ++i) sys.body(rods[i]).d = xs[i];
         st.status = Status::no_convergence;
