@@ -66,8 +66,8 @@ long long resume_step(const Checkpoint& c, const Scene& scene, const std::string
   const double t = c.header["time"].get<double>();
   const long long k = std::llround(t / time.dt);
   if (std::abs(static_cast<double>(k) * time.dt - t) > 1e-9 * std::max(t, time.dt))
-    throw ConfigError(fmt::format("--resume {}: its time t = {} s is not a multiple of time.dt = {} s (valid: the checkpoint's dt or a "
-                                  "divisor of its steps)",
+    throw ConfigError(fmt::format("--resume {}: its time t = {} s is not a multiple of time.dt = {} s (valid: a time.dt that divides t, "
+                                  "e.g. the dt of the run that wrote it)",
                                   path, t, time.dt));
   const long long total = static_cast<long long>(time.num_frames()) * time.steps_per_frame();
   if (k >= total)

@@ -129,5 +129,8 @@ TEST_SUITE("apps") {
     const std::string at_end = (dir / "end" / "checkpoint.wckp").string();
     refused(fmt::format("run {} time.duration=0.04 --resume {}", whip, at_end), "at or after the scene's end (time.duration = 0.04 s)");
     refused(fmt::format("run {} rods.0.vertices=40 --resume {}", whip, at_end), "checkpoint rod 0 has 119 DoFs; this scene's rod 0 has 159");
+    // A state at t = 2.068 s (step 1034 of 2 ms) is not on the grid of 5 ms steps.
+    const std::string at_2068 = std::string(WEFT_SOURCE_DIR) + "/tests/data/checkpoints/near_wall_whip_30v_2ms_after_step1034.wckp";
+    refused(fmt::format("run {} time.dt=0.005 time.duration=3 --resume {}", whip, at_2068), "is not a multiple of time.dt = 0.005 s");
   }
 }
