@@ -343,8 +343,6 @@ int run_scene(const RunOptions& opt) {
       code = 128 + sig;
       break;
     }
-    std::optional<Checkpoint> before;  // the state at the start of the step, kept for a failure
-    if (checkpoints) before = sim->checkpoint();
     StepReport rep;
     try {
       rep = sim->step();
@@ -371,6 +369,16 @@ int run_scene(const RunOptions& opt) {
       status = "failed";
       failure = {{"step", rep.step}, {"time", rep.time}, {"stage", rep.failed_stage},
                  {"status", to_string(rep.status)}, {"reason", rep.message}};
+      // A rod step that fails returns before it moves the rods or the clock (q, v, frames and
+      // t change only at its end), so the state now is the step's start: no copy is kept
+      // before every step. An internal error may have left it anywhere: no checkpoint then.
+      std::optional<Checkpoint> before;
+      if (checkpoints && rep.failed_stage != "internal") {
+        before = sim->checkpoint();
+        before->header["step"] = s - 1;  // the simulator counted the failed step
+        if (std::abs(before->header["time"].get<double>() - static_cast<double>(s - 1) * time.dt) > 1e-9 * std::max(1.0, static_cast<double>(s)) * time.dt)
+          before.reset();  // the clock moved: not the step's start
+      }
       if (before) failure["checkpoint"] = save(*before, "failed_step.wckp");
       progress.finish_line();
       fmt::print(stderr, "error: step {} (t = {} s) failed in stage '{}': {}: {}\n", rep.step, rep.time, rep.failed_stage,

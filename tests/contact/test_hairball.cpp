@@ -17,20 +17,16 @@
 
 #include "contact/obstacle_penalty.hpp"
 #include "contact/rods/rod_verify.hpp"
-#include "framework/checkpoint.hpp"
 #include "framework/error.hpp"
 #include "policies/registry.hpp"
+#include "tests/support/rod_fixtures.hpp"
 
 using namespace weft;
 using Eigen::Vector3d;
 
 namespace {
 
-std::string scene_path(const std::string& name) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
-  return std::string(root) + "/scenes/" + name;
-}
+std::string scene_path(const std::string& name) { return support::source_path("scenes/" + name); }
 
 std::vector<Vector3d> positions(const State& s) {
   std::vector<Vector3d> x(s.num_vertices());
@@ -43,14 +39,6 @@ std::vector<Vector3d> positions(const State& s) {
 std::unique_ptr<AnySimulator> v21_with_overlaps(const std::string& round_start) {
   return make_simulator(
       load_scene(scene_path("hairball_250.json"), {"contact.overlap_tol=0.01", "time.duration=0.8", "contact.round_start=" + round_start}));
-}
-
-/// `sim` continued from the state before V-21's step 22 with end-overlap contacts, recorded by
-/// `weft run` (failed_step.wckp of that run with round_start = last; tests/data/checkpoints/).
-void before_step_22(AnySimulator& sim) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
-  sim.restore(read_checkpoint(std::string(root) + "/tests/data/checkpoints/hairball_250_overlap_after_step21.wckp"));
 }
 
 /// Rod pairs of `sim`'s state (every rod of the scene's first family's radius) that overlap by
@@ -250,7 +238,7 @@ TEST_SUITE("rods") {
     for (const std::string start : {"first", "zero"}) {
       CAPTURE(start);
       auto sim = v21_with_overlaps(start);
-      before_step_22(*sim);
+      support::resume_from_fixture(*sim, "hairball_250_overlap_after_step21.wckp");  // recorded by the round_start = last run
       REQUIRE(overlapping_pairs(*sim, 0.01) == 0);
       const StepReport r = sim->step();
       REQUIRE_MESSAGE(r.ok(), r.message);
@@ -395,7 +383,7 @@ TEST_SUITE("slow") {
     // sweeps, bench/results/rods/figure_9_12_clearance/evidence/) and the step fails. About
     // 3 minutes of diverging rounds.
     auto sim = v21_with_overlaps("last");
-    before_step_22(*sim);
+    support::resume_from_fixture(*sim, "hairball_250_overlap_after_step21.wckp");  // recorded by the round_start = last run
     const StepReport r = sim->step();
     MESSAGE("round_start = last, step " << r.step << ": " << r.message);
     CHECK(r.step == 22);

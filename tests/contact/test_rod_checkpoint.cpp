@@ -7,23 +7,19 @@
 
 #include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "framework/checkpoint.hpp"
 #include "policies/registry.hpp"
+#include "tests/support/rod_fixtures.hpp"
 
 using namespace weft;
 
 namespace {
 
-std::string scene_path(const std::string& name) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
-  return std::string(root) + "/scenes/" + name;
-}
+std::string scene_path(const std::string& name) { return support::source_path("scenes/" + name); }
 
 std::unique_ptr<AnySimulator> small_ball(const std::string& combo, int rods = 24) {
   return make_simulator(load_scene(scene_path("hairball_250.json"),

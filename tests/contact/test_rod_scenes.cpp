@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "contact/rods/rod_verify.hpp"
-#include "framework/checkpoint.hpp"
 #include "policies/rod_presets.hpp"
 #include "policies/registry.hpp"
+#include "tests/support/rod_fixtures.hpp"
 
 using namespace weft;
 
@@ -48,6 +48,15 @@ int overlaps_deeper_than(const AnySimulator& sim, double r, double depth) {
   std::vector<Eigen::Vector3d> x(sim.state().num_vertices());
   for (int i = 0; i < sim.state().num_vertices(); ++i) x[i] = sim.state().position(i);
   return contact::rods::count_rod_overlaps(x, sim.scene().rods.first, std::vector<double>(sim.scene().rods.num_rods(), r), depth, 2);
+}
+
+/// The most rod-rod contacts that one edge pair holds at the end of `sim`'s last step.
+int most_contacts_on_a_pair(AnySimulator& sim) {
+  std::map<std::array<int, 2>, int> n;
+  int most = 0;
+  for (const auto& k : as<RodsAdonis>(sim).contact().last_contacts())
+    if (k.geometry.kind == contact::rods::RodContact::Kind::rod_rod) most = std::max(most, ++n[{k.geometry.edge_a, k.geometry.edge_b}]);
+  return most;
 }
 
 // A 10 cm hair-like rod (r = 50 um, Y = 1 GPa).
@@ -475,15 +484,9 @@ TEST_SUITE("slow") {
                                  std::string("contact.overlap_tol=") + overlap_tol});
       const double radius = sim->scene().spec.rods[0].material.radius;
       Run w;
-      const auto contacts_on_a_pair = [&] {
-        std::map<std::array<int, 2>, int> n;
-        for (const auto& k : as<RodsAdonis>(*sim).contact().last_contacts())
-          if (k.geometry.kind == contact::rods::RodContact::Kind::rod_rod) ++n[{k.geometry.edge_a, k.geometry.edge_b}];
-        for (const auto& [pair, count] : n) w.most_on_a_pair = std::max(w.most_on_a_pair, count);
-      };
       for (int k = 0; k < 1100; ++k) {
         const StepReport r = sim->step();
-        contacts_on_a_pair();
+        w.most_on_a_pair = std::max(w.most_on_a_pair, most_contacts_on_a_pair(*sim));
         if (!r.ok()) {
           w.failure = r;
           return w;
@@ -551,27 +554,6 @@ TEST_SUITE("slow") {
   }
 }
 
-namespace {
-
-/// `sim` continued from tests/data/checkpoints/`name`: the state at the start of the step of
-/// an event, recorded by `weft run ... --checkpoint-every` or as failed_step.wckp from the run
-/// of the same parameters in the slow suite above (the header's "run" holds the command).
-void resume_from(AnySimulator& sim, const std::string& name) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
-  sim.restore(read_checkpoint(std::string(root) + "/tests/data/checkpoints/" + name));
-}
-
-/// The most rod-rod contacts that one edge pair holds at the end of `sim`'s last step.
-int most_contacts_on_a_pair(AnySimulator& sim) {
-  std::map<std::array<int, 2>, int> n;
-  int most = 0;
-  for (const auto& k : as<RodsAdonis>(sim).contact().last_contacts())
-    if (k.geometry.kind == contact::rods::RodContact::Kind::rod_rod) most = std::max(most, ++n[{k.geometry.edge_a, k.geometry.edge_b}]);
-  return most;
-}
-
-}  // namespace
 
 TEST_SUITE("rods") {
   TEST_CASE("rods: ADONIS restarts a group whose exact iteration folds an edge with projected re-linearisations (replayed step 293)") {
@@ -583,7 +565,7 @@ TEST_SUITE("rods") {
       auto sim = near_wall_whip({"rods.0.vertices=120", "rods.0.motion.angular_velocity=[0,0,20]", "combo=rods_adonis",
                                  "contact.redetections=20", "integrator.max_iterations=200", "time.dt=0.01", "time.frame_rate=50",
                                  "time.duration=5", std::string("contact.projected_restart=") + restart});
-      resume_from(*sim, "near_wall_whip_120v_10ms_after_step292.wckp");
+      support::resume_from_fixture(*sim, "near_wall_whip_120v_10ms_after_step292.wckp");
       return sim;
     };
     auto off = whip("false");
@@ -615,7 +597,7 @@ TEST_SUITE("rods") {
     const auto whip = [](const char* restart, const std::string& start = "last") {
       auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=2e-5", "time.dt=0.01", "time.frame_rate=50", "contact.redetections=20",
                             "integrator.max_iterations=200", "contact.round_start=" + start, std::string("contact.projected_restart=") + restart});
-      resume_from(*sim, "whip_edge_20um_10ms_after_step30.wckp");
+      support::resume_from_fixture(*sim, "whip_edge_20um_10ms_after_step30.wckp");
       return sim;
     };
     const StepReport off = whip("false")->step();
@@ -654,7 +636,7 @@ TEST_SUITE("rods") {
                                  "contact.relinearization=projected", "contact.redetections=20", "integrator.max_iterations=200",
                                  "time.dt=0.002", "time.frame_rate=50", "time.duration=2.2", std::string("contact.overlap_follow=") + follow,
                                  "contact.overlap_tol=0.01"});
-      resume_from(*sim, "near_wall_whip_30v_2ms_after_step1034.wckp");
+      support::resume_from_fixture(*sim, "near_wall_whip_30v_2ms_after_step1034.wckp");
       return sim;
     };
     auto off = whip("false");
@@ -688,7 +670,7 @@ TEST_SUITE("rods") {
       auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=6e-6", "time.dt=0.0005", "time.frame_rate=50", "time.duration=0.2",
                             "contact.redetections=20", "integrator.max_iterations=200", std::string("contact.overlap_follow=") + follow,
                             "contact.overlap_tol=0.01"});
-      resume_from(*sim, "whip_edge_6um_500us_after_step356.wckp");
+      support::resume_from_fixture(*sim, "whip_edge_6um_500us_after_step356.wckp");
       return sim;
     };
     const StepReport crossed = whip("false")->step();

@@ -2,8 +2,12 @@
 /// \file rod_fixtures.hpp
 /// Shared set-up of the rod scene tests: a scene built from JSON rod families, and the
 /// concrete simulator behind an AnySimulator.
+#include <doctest/doctest.h>
+
+#include <cstdlib>
 #include <string>
 
+#include "framework/checkpoint.hpp"
 #include "policies/registry.hpp"
 
 namespace weft::support {
@@ -23,6 +27,19 @@ inline Scene rod_scene(const std::string& combo, const Json& rods, double dt, do
 template <class Sim>
 Sim& as(AnySimulator& s) {
   return dynamic_cast<SimulatorAdapter<Sim>&>(s).simulator();
+}
+
+/// A file of the source tree (WEFT_SOURCE_DIR, which CTest sets), e.g. "scenes/whip.json".
+inline std::string source_path(const std::string& relative) {
+  const char* root = std::getenv("WEFT_SOURCE_DIR");
+  REQUIRE(root);
+  return std::string(root) + "/" + relative;
+}
+
+/// `sim` continued from tests/data/checkpoints/`name`: a state recorded by `weft run`
+/// (`--checkpoint-every`, or failed_step.wckp); the directory's README says from which run.
+inline void resume_from_fixture(AnySimulator& sim, const std::string& name) {
+  sim.restore(read_checkpoint(source_path("tests/data/checkpoints/" + name)));
 }
 
 }  // namespace weft::support
