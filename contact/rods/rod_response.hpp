@@ -125,6 +125,7 @@ struct RodContactParams {
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
   double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
   bool overlap_follow = true;  ///< end-overlap contacts follow their edge pair: moved to the new closest points and their end normal, not added again
+  bool overlap_keep = true;    ///< overlap_follow: a follower that moves leaves a fixed contact where it bore load
   ContactSolver solver = ContactSolver::gauss_seidel;  ///< the contact solve of a group
   int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
   bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
@@ -186,6 +187,13 @@ struct RodContactParams {
              "linearisation of the edges' distance at the current iterate; where the end points nearly meet or have passed each "
              "other, the normal of the edges' crossing, on the side where they were at the start); false: each such round adds "
              "another contact, with the start offset of its points as normal"});
+    v.field("overlap_keep", overlap_keep,
+            {Unit::none, Range::any(),
+             "overlap_follow: a follower about to move whose normal multiplier is positive (it bore load in the last solve) "
+             "stays where it is as a fixed contact, with its multipliers, and the new place gets the pair's follower: the "
+             "linearisations of the edges' distance accumulate instead of replacing each other (false: the follower always "
+             "moves; where the held point acts as a pivot the pair then alternates between two places, or creeps along the "
+             "edges, until the re-detections run out)"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
     v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
@@ -292,6 +300,13 @@ class RodResponse {
           ++added;
           k.follows = prm_.overlap_follow;
           if (o.follower < 0) {
+            contacts_.push_back(std::move(k));
+          } else if (prm_.overlap_keep && contacts_[o.follower].lambda[0] > 0) {
+            // The place it leaves bore load: it keeps a (fixed) contact there, with its
+            // multipliers, and the new place gets the follower (cold). Replacing one
+            // linearisation of the distance by the next lets the held point pivot: the pair
+            // then alternates between two places or creeps along the edges round after round.
+            contacts_[o.follower].follows = false;
             contacts_.push_back(std::move(k));
           } else {  // the pair's contact moves; its multipliers stay as the warm start
             k.lambda = contacts_[o.follower].lambda;

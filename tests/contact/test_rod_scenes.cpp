@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "framework/distance.hpp"
 #include "contact/rods/rod_verify.hpp"
 #include "policies/rod_presets.hpp"
 #include "policies/registry.hpp"
@@ -50,11 +51,13 @@ int overlaps_deeper_than(const AnySimulator& sim, double r, double depth) {
   return contact::rods::count_rod_overlaps(x, sim.scene().rods.first, std::vector<double>(sim.scene().rods.num_rods(), r), depth, 2);
 }
 
-/// The most rod-rod contacts that one edge pair holds at the end of `sim`'s last step.
+/// The most rod-rod contacts that one edge pair holds at the end of `sim`'s last step
+/// (`sim` runs combination Sim).
+template <class Sim = RodsAdonis>
 int most_contacts_on_a_pair(AnySimulator& sim) {
   std::map<std::array<int, 2>, int> n;
   int most = 0;
-  for (const auto& k : as<RodsAdonis>(sim).contact().last_contacts())
+  for (const auto& k : as<Sim>(sim).contact().last_contacts())
     if (k.geometry.kind == contact::rods::RodContact::Kind::rod_rod) most = std::max(most, ++n[{k.geometry.edge_a, k.geometry.edge_b}]);
   return most;
 }
@@ -686,5 +689,58 @@ TEST_SUITE("rods") {
     }
     CHECK(on->state().t == doctest::Approx(0.2));
     CHECK(deepest == 0);
+  }
+  TEST_CASE("rods: a follower that bore load keeps a contact where it was (replayed impulse steps 4721 and 4859)") {
+    // scenes/whip_edge.json under impulses at 0.2 ms with 6 and 2 um rods (Figure 9.2's edge
+    // sweep, bench/results/rods/figure_9_2_edge/), from the state before the step where the
+    // sweep failed. In both a self-contact pair's end-overlap follower pivots about the
+    // place it holds: at 6 um (edges 7 and 20) it alternates between two places, at 2 um
+    // (edges 9 and 13) it creeps along the edges by about a quarter of r_a + r_b per round,
+    // and with contact.overlap_keep = false the step fails when the 20 re-detections run out.
+    // Kept where they bore load, the places accumulate: the step holds with that pair apart
+    // to within 1 % of r_a + r_b, and the run reaches t = 1 s.
+    struct Case {
+      std::string radius, fixture;
+      int step, edge_a, edge_b;
+    };
+    for (const Case& c : {Case{"6e-6", "whip_edge_6um_impulse_200us_after_step4720.wckp", 4721, 7, 20},
+                          Case{"2e-6", "whip_edge_2um_impulse_200us_after_step4858.wckp", 4859, 9, 13}}) {
+      CAPTURE(c.radius);
+      const auto whip = [&](const char* keep) {
+        auto sim = edge_whip({"combo=rods_impulse", "rods.0.material.radius=" + c.radius, "time.dt=0.0002", "time.duration=1",
+                              "contact.redetections=20", "integrator.max_iterations=200", std::string("contact.overlap_keep=") + keep});
+        support::resume_from_fixture(*sim, c.fixture);
+        return sim;
+      };
+      const StepReport moved = whip("false")->step();
+      MESSAGE("overlap_keep = false, step " << moved.step << ": " << moved.message);
+      CHECK(moved.step == c.step);
+      CHECK(moved.message.find("keeps creating contacts") != std::string::npos);  // the guard
+      auto on = whip("true");
+      const StepReport held = on->step();
+      REQUIRE_MESSAGE(held.ok(), held.message);
+      const double r = std::stod(c.radius);
+      const State& s = on->state();
+      const double distance = std::sqrt(segment_segment_distance(s.position(c.edge_a), s.position(c.edge_a + 1),
+                                                                             s.position(c.edge_b), s.position(c.edge_b + 1))
+                                            .distance_squared);
+      const int most = most_contacts_on_a_pair<RodsImpulse>(*on);
+      MESSAGE("overlap_keep = true: step " << held.step << " in " << held.contact.redetections << " re-detections, " << most
+                                           << " contacts on one edge pair, edges " << c.edge_a << " and " << c.edge_b << " end "
+                                           << distance / (2 * r) << " (r_a + r_b) apart");
+      CHECK(held.step == c.step);
+      CHECK(held.contact.redetections < 20);
+      CHECK(most >= 2);  // a kept place and the follower (at least)
+      CHECK(distance > 0.99 * 2 * r);
+      // Overlaps elsewhere (contacts detected already overlapping, gap = none, the thesis'
+      // linearisation) are reported, not asserted: they occur with either setting.
+      int steps = 1, deep = 0;
+      for (; on->state().t < 1 - 1e-9; ++steps) {
+        const StepReport k = on->step();
+        REQUIRE_MESSAGE(k.ok(), k.message);
+        deep += overlaps_deeper_than(*on, r, 0.1 * 2 * r) > 0;
+      }
+      MESSAGE(steps << " steps to t = 1 s, " << deep << " ending with a pair deeper than 10 %");
+    }
   }
 }
