@@ -5,6 +5,7 @@
 #include <fstream>
 #include <thread>
 
+#include "framework/build_info.hpp"
 #include "linear/lapack_info.hpp"
 
 #ifndef WEFT_SOURCE_DIR
@@ -60,6 +61,7 @@ Json meta_record(std::string_view bench, const std::string& git, const std::stri
   return {{"record", "meta"},
           {"bench", bench},
           {"git", git},
+          {"build", build_commit()},
           {"compiler", __VERSION__},
           {"flags", build_flags()},
           {"cpu", cpu},

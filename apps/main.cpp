@@ -18,6 +18,7 @@
 #include "apps/plots.hpp"
 #include "apps/stability.hpp"
 #include "apps/runner.hpp"
+#include "framework/build_info.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
 
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
   using namespace weft;
   CLI::App app{"weft: cloth and hair simulation with frictional contact, composed from compile-time policies"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("weft ") + version() + ", built from " + build_commit());
   int threads = 0;
   std::string log_level = "info";
   app.add_option("--threads", threads, "worker threads (default: all cores, or OMP_NUM_THREADS)")->check(CLI::NonNegativeNumber);
@@ -68,7 +70,7 @@ int main(int argc, char** argv) {
   cmd_stab->add_option("--duration", stab.duration, "simulated time per run [s] (default: the scene's)")->check(CLI::PositiveNumber);
   cmd_stab->add_option("--strain", stab.strain_threshold, "edge strain above which a run is 'excessive strain' (default 0.5)")
       ->check(CLI::PositiveNumber);
-  cmd_stab->add_option("-o,--out", stab.out_dir, "output directory for stability.csv and stability_map.txt");
+  cmd_stab->add_option("-o,--out", stab.out_dir, "output directory for stability.csv, stability_map.txt and stability_meta.json (the build, machine and command)");
   cmd_stab->add_flag("-q,--quiet", stab.quiet, "no per-run lines");
   bool stab_no_plots = false;
   cmd_stab->add_flag("--no-plots", stab_no_plots, "no stability_map.png/.svg");

@@ -17,6 +17,7 @@
 #include <optional>
 #include <regex>
 
+#include "framework/build_info.hpp"
 #include "framework/checkpoint.hpp"
 #include "framework/obj_io.hpp"
 #include "framework/reports.hpp"
@@ -329,7 +330,7 @@ int run_scene(const RunOptions& opt) {
   int code = exit_ok;
   const auto save = [&](const Checkpoint& c, const char* name) {
     Checkpoint k = c;
-    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"lapack", linear::lapack_library()}};
+    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"lapack", linear::lapack_library()}, {"build", build_commit()}};
     write_checkpoint((dir / name).string(), k);
     return std::string(name);
   };
@@ -437,6 +438,7 @@ int run_scene(const RunOptions& opt) {
                {"stage_seconds", to_json(stage_total)},
                {"final_energy", energies},
                {"lapack", linear::lapack_library()},
+               {"build", build_commit()},
                {"threads",
 #ifdef _OPENMP
                 omp_get_max_threads()

@@ -12,6 +12,10 @@
 #include <fstream>
 #include <map>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "framework/scene.hpp"
 #include "framework/writers.hpp"
 #include "policies/registry.hpp"
@@ -154,6 +158,23 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
   std::vector<std::string> combos = opt.combos.empty() ? std::vector<std::string>{""} : opt.combos;
 
   std::filesystem::create_directories(opt.out_dir);
+  {
+    // What made this sweep: the build, the machine and the command, beside its table.
+#ifdef _OPENMP
+    const int threads = omp_get_max_threads();
+#else
+    const int threads = 1;
+#endif
+    Json meta = meta_record("stability", git_describe(source_dir()), cpu_model(), threads);
+    meta["scene"] = opt.scene;
+    meta["overrides"] = opt.overrides;
+    meta["combos"] = opt.combos;
+    meta["dts"] = opt.dts;
+    meta["vary"] = {{"key", opt.vary_key}, {"values", opt.vary_values}};
+    meta["duration"] = opt.duration;
+    meta["strain_threshold"] = opt.strain_threshold;
+    std::ofstream((std::filesystem::path(opt.out_dir) / "stability_meta.json").string()) << meta.dump(1) << "\n";
+  }
   const std::string csv_path = (std::filesystem::path(opt.out_dir) / "stability.csv").string();
   std::ofstream csv(csv_path);
   csv << "combo,dt,key,value,outcome,steps,steps_planned,max_strain,energy_change,newton_mean,newton_max,wall_seconds,contact_steps,"

@@ -1,5 +1,8 @@
 #include <doctest/doctest.h>
 
+#include <cstdint>
+#include <regex>
+
 #include "cli_support.hpp"
 
 using namespace weft::test;
@@ -34,6 +37,39 @@ TEST_SUITE("apps") {
       CHECK(list.output.find(s) != std::string::npos);
     const Result bad = run_weft("frobnicate");
     CHECK(bad.code != 0);
+  }
+
+  TEST_CASE("cli: --version, summary.json, checkpoints and stability sweeps name the commit the binary was built from") {
+    const Result v = run_weft("--version");
+    REQUIRE(v.code == 0);
+    std::smatch m;
+    REQUIRE_MESSAGE(std::regex_match(v.output, m, std::regex(R"(weft (\d+\.\d+\.\d+), built from (.+)\n)")), v.output);
+    const std::string build = m[2];
+    // From a git checkout (CI's clone): an abbreviated commit (after a tag's name, if any),
+    // "-dirty" when the tree had uncommitted changes at build time.
+    if (fs::exists(fs::path(WEFT_SOURCE_DIR) / ".git")) CHECK_MESSAGE(std::regex_match(build, std::regex("(.*-g)?[0-9a-f]{12}(-dirty)?")), build);
+    const auto dir = temp_dir("build_records");
+    const std::string whip = std::string(WEFT_SOURCE_DIR) + "/scenes/whip_edge.json";
+    const Result r = run_weft(fmt::format("run {} time.duration=0.02 -q --checkpoint-every 1 -o {}", whip, (dir / "run").string()));
+    REQUIRE_MESSAGE(r.code == 0, r.output);
+    CHECK(json::parse(slurp(dir / "run" / "summary.json"))["build"] == build);
+    // The checkpoint's JSON header: after the 8-byte magic and its 8-byte length.
+    std::ifstream in(dir / "run" / "checkpoint.wckp", std::ios::binary);
+    char magic[8];
+    std::uint64_t length = 0;
+    REQUIRE(in.read(magic, 8));
+    REQUIRE(in.read(reinterpret_cast<char*>(&length), 8));
+    REQUIRE(length < 1000000);
+    std::string header(length, '\0');
+    REQUIRE(in.read(header.data(), static_cast<std::streamsize>(length)));
+    CHECK(json::parse(header)["run"]["build"] == build);
+    const Result st = run_weft(fmt::format("stability {} --dt 0.01 --duration 0.02 --combos rods_impulse --no-plots -o {}", whip, (dir / "stab").string()));
+    REQUIRE_MESSAGE(st.code == 0, st.output);
+    const json meta = json::parse(slurp(dir / "stab" / "stability_meta.json"));
+    CHECK(meta["build"] == build);
+    CHECK(meta["scene"] == whip);
+    CHECK(meta["dts"] == json::array({0.01}));
+    CHECK(meta["combos"] == json::array({"rods_impulse"}));
   }
 
   TEST_CASE("cli: unknown key / wrong type and out-of-range value are all reported / nothing written") {

@@ -23,19 +23,11 @@ using namespace weft;
 
 namespace {
 
-/// A rod scene: `rods` families, optional obstacles, dt for `duration`, `extra` merged in.
-Scene rod_scene(const std::string& combo, const std::string& rods, double dt, double duration, const std::string& extra = "{}") {
-  Json doc = Json::parse(R"({"output": {"obj": false, "vtp": false}})");
-  doc["combo"] = combo;
-  doc["rods"] = Json::parse(rods);
-  doc["time"] = {{"dt", dt}, {"duration", duration}, {"frame_rate", 1.0 / dt}};
-  doc.merge_patch(Json::parse(extra));
-  return build_scene(doc, ".", "test");
-}
+using support::as;
 
-template <class Sim>
-Sim& as(AnySimulator& s) {
-  return dynamic_cast<SimulatorAdapter<Sim>&>(s).simulator();
+/// support::rod_scene with the families and the extra keys given as JSON text.
+Scene rod_scene(const std::string& combo, const std::string& rods, double dt, double duration, const std::string& extra = "{}") {
+  return support::rod_scene(combo, Json::parse(rods), dt, duration, Json::parse(extra));
 }
 
 Eigen::Vector3d centre_of_mass(const State& s) {
@@ -235,19 +227,15 @@ namespace {
 /// scenes/whip.json with its wall 14 cm nearer the axis (edge at 7 cm: the rod strikes it at
 /// every step size, bench/results/rods/figure_9_2_near_wall/), plus `overrides`.
 std::unique_ptr<AnySimulator> near_wall_whip(std::vector<std::string> overrides) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
   for (const char* o : {"rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]", "gravity=[0,0,0]",
                         "obstacles.0.center=[0.17,0,0]"})
     overrides.insert(overrides.begin(), o);
-  return make_simulator(load_scene(std::string(root) + "/scenes/whip.json", overrides));
+  return make_simulator(load_scene(support::source_path("scenes/whip.json"), overrides));
 }
 
 /// scenes/whip_edge.json (the tension-free whip: its middle strikes a wall edge) with overrides.
 std::unique_ptr<AnySimulator> edge_whip(const std::vector<std::string>& overrides) {
-  const char* root = std::getenv("WEFT_SOURCE_DIR");
-  REQUIRE(root);
-  return make_simulator(load_scene(std::string(root) + "/scenes/whip_edge.json", overrides));
+  return make_simulator(load_scene(support::source_path("scenes/whip_edge.json"), overrides));
 }
 
 /// The near-wall whip with 240 vertices (0.84 mm edges) at 10 rad/s and 0.1 ms under linear
