@@ -50,6 +50,7 @@ struct RodContactRows {
   double mu = 0;
   double scale = 1;                          ///< coulomb_scale(W)
   bool follows = false;                      ///< an end-overlap contact that moves with its edge pair (contact.overlap_follow)
+  int moves = 0;                             ///< follows: how often the pair's follower moved in this step (contact.overlap_keep)
 };
 
 /// The rods' displacements of a group, by slot.

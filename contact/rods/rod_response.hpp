@@ -125,7 +125,7 @@ struct RodContactParams {
   int redetections = 4;        ///< detections on the corrected trajectory that may add contacts (then the step fails)
   double overlap_tol = 0.01;   ///< re-detection: end overlap (fraction of r_a + r_b) that gives a contacted rod pair a contact at its new closest points (0: off)
   bool overlap_follow = true;  ///< end-overlap contacts follow their edge pair: moved to the new closest points and their end normal, not added again
-  bool overlap_keep = true;    ///< overlap_follow: a follower that moves leaves a fixed contact where it bore load
+  bool overlap_keep = true;    ///< overlap_follow: a follower that moves again leaves a fixed contact where it bore load
   ContactSolver solver = ContactSolver::gauss_seidel;  ///< the contact solve of a group
   int solver_max = 50;         ///< newton: Newton (and fallback) steps per contact solve after Gauss-Seidel
   bool groups = true;          ///< solve contact groups separately (false: every contacted rod in one group)
@@ -182,18 +182,19 @@ struct RodContactParams {
              "contacts hold only at their own material points along their own normals)"});
     v.field("overlap_follow", overlap_follow,
             {Unit::none, Range::any(),
-             "re-detection with overlap_tol > 0: an edge pair keeps one end-overlap contact, which each round that finds the pair "
-             "overlapping again moves to the new closest end points and takes their normal at the end of the corrected step (the "
+             "re-detection with overlap_tol > 0: an edge pair keeps one following end-overlap contact (overlap_keep: plus fixed "
+             "contacts at the places it left while bearing load), which each round that finds the pair overlapping again moves "
+             "to the new closest end points and takes their normal at the end of the corrected step (the "
              "linearisation of the edges' distance at the current iterate; where the end points nearly meet or have passed each "
              "other, the normal of the edges' crossing, on the side where they were at the start); false: each such round adds "
              "another contact, with the start offset of its points as normal"});
     v.field("overlap_keep", overlap_keep,
             {Unit::none, Range::any(),
-             "overlap_follow: a follower about to move whose normal multiplier is positive (it bore load in the last solve) "
-             "stays where it is as a fixed contact, with its multipliers, and the new place gets the pair's follower: the "
-             "linearisations of the edges' distance accumulate instead of replacing each other (false: the follower always "
-             "moves; where the held point acts as a pivot the pair then alternates between two places, or creeps along the "
-             "edges, until the re-detections run out)"});
+             "overlap_follow: from its second move in a step on, a follower about to move whose normal multiplier is positive "
+             "(it bore load in the last solve) stays where it is as a fixed contact, with its multipliers, and the new place "
+             "gets the pair's follower: the linearisations of the edges' distance accumulate instead of replacing each other "
+             "(false: the follower always moves; where the held point acts as a pivot the pair then alternates between two "
+             "places, or creeps along the edges, until the re-detections run out)"});
     v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
     v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
@@ -301,17 +302,21 @@ class RodResponse {
           k.follows = prm_.overlap_follow;
           if (o.follower < 0) {
             contacts_.push_back(std::move(k));
-          } else if (prm_.overlap_keep && contacts_[o.follower].lambda[0] > 0) {
-            // The place it leaves bore load: it keeps a (fixed) contact there, with its
-            // multipliers, and the new place gets the follower (cold). Replacing one
-            // linearisation of the distance by the next lets the held point pivot: the pair
-            // then alternates between two places or creeps along the edges round after round.
-            contacts_[o.follower].follows = false;
+          } else if (RodContactRows& old = contacts_[o.follower]; prm_.overlap_keep && old.moves > 0 && old.lambda[0] > 0) {
+            // A second move, and the place it leaves bore load: it keeps a (fixed) contact
+            // there, with its multipliers, and the new place gets the follower (cold).
+            // Replacing one linearisation of the distance by the next lets the held point
+            // pivot: the pair then alternates between two places or creeps along the edges
+            // round after round. (A first move is free: most pairs settle after it, and
+            // every kept place is one more near-duplicate row for Gauss-Seidel.)
+            old.follows = false;
+            k.moves = old.moves + 1;
             contacts_.push_back(std::move(k));
           } else {  // the pair's contact moves; its multipliers stay as the warm start
-            k.lambda = contacts_[o.follower].lambda;
-            k.lambda_first = contacts_[o.follower].lambda_first;
-            contacts_[o.follower] = std::move(k);
+            k.lambda = old.lambda;
+            k.lambda_first = old.lambda_first;
+            k.moves = old.moves + 1;
+            old = std::move(k);
           }
         }
       }
@@ -390,7 +395,8 @@ class RodResponse {
   /// edges fold against each other at a shallow angle the overlap then reappears next to the
   /// new contact, just outside the merge distance, round after round, until the step fails
   /// (docs/rods.md, "the re-detection walk").
-  /// overlap_follow = true: a pair has at most one such contact, which moves to the closest
+  /// overlap_follow = true: a pair has at most one such contact that follows it (overlap_keep
+  /// leaves fixed ones where it bore load, see resolve), which moves to the closest
   /// end points with the normal n1 between them at the end: n1^T (p_a - p_b) >= r_a + r_b is
   /// the linearisation of the edges' distance at the current iterate (its gradient at
   /// interior closest points), so the rounds are sequential linearisations of the distance
