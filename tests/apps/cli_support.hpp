@@ -20,8 +20,9 @@ struct Result {
   std::string output;  // stdout and stderr
 };
 
-inline Result run_weft(const std::string& args, const std::string& prefix = "") {
-  const std::string cmd = prefix + " " WEFT_BINARY " " + args + " 2>&1";
+/// Runs a shell command: its exit code and its stdout and stderr.
+inline Result run_shell(const std::string& command) {
+  const std::string cmd = command + " 2>&1";
   Result r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -31,6 +32,10 @@ inline Result run_weft(const std::string& args, const std::string& prefix = "") 
   const int status = pclose(p);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+inline Result run_weft(const std::string& args, const std::string& prefix = "") {
+  return run_shell(prefix + " " WEFT_BINARY " " + args);
 }
 
 /// A fresh temporary directory per test.
