@@ -72,9 +72,9 @@ long long resume_step(const Checkpoint& c, const Scene& scene, const std::string
                                   path, t, time.dt));
   const long long total = static_cast<long long>(time.num_frames()) * time.steps_per_frame();
   if (k >= total)
-    throw ConfigError(fmt::format("--resume {}: its time t = {} s is at or after the scene's end (time.duration = {} s): nothing to run; "
-                                  "override time.duration to continue",
-                                  path, t, time.duration));
+    throw ConfigError(fmt::format("--resume {}: its time t = {} s is at or after the scene's end, t = {} s ({} frames of {} s for "
+                                  "time.duration = {} s): nothing to run; override time.duration to continue",
+                                  path, t, static_cast<double>(total) * time.dt, time.num_frames(), 1.0 / time.frame_rate, time.duration));
   return k;
 }
 

@@ -127,7 +127,11 @@ TEST_SUITE("apps") {
     const Result end = run_weft(fmt::format("run {} time.duration=0.04 -q --checkpoint-every 1 -o {}", whip, (dir / "end").string()));
     REQUIRE(end.code == 0);
     const std::string at_end = (dir / "end" / "checkpoint.wckp").string();
-    refused(fmt::format("run {} time.duration=0.04 --resume {}", whip, at_end), "at or after the scene's end (time.duration = 0.04 s)");
+    refused(fmt::format("run {} time.duration=0.04 --resume {}", whip, at_end), "at or after the scene's end, t = 0.04 s (2 frames of 0.02 s");
+    // The scene ends on its last whole frame: 0.05 s of 0.02 s frames ends at 0.04 s, and the
+    // message says so rather than only quoting time.duration.
+    refused(fmt::format("run {} time.duration=0.05 --resume {}", whip, at_end),
+            "at or after the scene's end, t = 0.04 s (2 frames of 0.02 s for time.duration = 0.05 s)");
     refused(fmt::format("run {} rods.0.vertices=40 --resume {}", whip, at_end), "checkpoint rod 0 has 119 DoFs; this scene's rod 0 has 159");
     // A state at t = 2.068 s (step 1034 of 2 ms) is not on the grid of 5 ms steps.
     const std::string at_2068 = std::string(WEFT_SOURCE_DIR) + "/tests/data/checkpoints/near_wall_whip_30v_2ms_after_step1034.wckp";

@@ -731,4 +731,35 @@ TEST_SUITE("rods") {
       MESSAGE(steps << " steps to t = 1 s, " << deep << " ending with a pair deeper than 10 %");
     }
   }
+  TEST_CASE("rods: a rod DEL that fails from the follow-the-leader start is solved again from h v (replayed step 61)") {
+    // scenes/whip_edge.json with a 2 um rod under ADONIS at 5 ms (the edge sweep's thin-rod
+    // cells, bench/results/rods/figure_9_2_edge/), from the state before step 61. From the
+    // follow-the-leader projection of the guess (the start of lower E_inc) the DEL's Newton
+    // ends in "line search failed ... after 40 halvings" at |f| = 4.7e-14 with a 0.37 mm
+    // step; from h v it converges. integrator.retry_start = false keeps the failure.
+    const auto whip = [](const char* retry) {
+      auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=2e-6", "time.dt=0.005", "time.duration=0.4",
+                            "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.retry_start=") + retry});
+      support::resume_from_fixture(*sim, "whip_edge_2um_adonis_5ms_after_step60.wckp");
+      return sim;
+    };
+    const StepReport failed = whip("false")->step();
+    MESSAGE("retry_start = false, step " << failed.step << ": " << failed.message);
+    CHECK(failed.step == 61);
+    CHECK(failed.message.find("line search failed") != std::string::npos);  // the guard
+    auto on = whip("true");
+    int deepest = 0;
+    double strain = 0;
+    for (int k = 0; k < 20; ++k) {
+      const StepReport r = on->step();
+      REQUIRE_MESSAGE(r.ok(), r.message);
+      if (k == 0) MESSAGE("retry_start = true, step " << r.step << ": " << r.newton.iterations << " DEL Newton iterations (largest over the rods)");
+      strain = std::max(strain, r.contact.max_stretch);
+      deepest = std::max(deepest, overlaps_deeper_than(*on, 2e-6, 0.5 * 2 * 2e-6));
+    }
+    MESSAGE("steps 61-80: largest strain " << strain << ", at most " << deepest << " pairs deeper than 50 % at a step's end");
+    CHECK(on->state().t == doctest::Approx(0.4));
+    CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
+    CHECK(deepest == 0);
+  }
 }
