@@ -5,6 +5,10 @@
 #include <fstream>
 #include <thread>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "framework/build_info.hpp"
 #include "linear/lapack_info.hpp"
 
@@ -68,6 +72,14 @@ Json meta_record(std::string_view bench, const std::string& git, const std::stri
           {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
           {"lapack", linear::lapack_library()},
           {"threads", threads}};
+}
+
+int worker_threads() {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
 }
 
 }  // namespace weft::app

@@ -28,4 +28,7 @@ std::string csv_field(const std::string& s);
 /// "cpu", "hardware_threads", "threads"}; the bench adds its own keys.
 Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads);
 
+/// OpenMP worker threads of the next parallel region (1 without OpenMP).
+int worker_threads();
+
 }  // namespace weft::app

@@ -116,11 +116,7 @@ int bench_contact(const BenchContactOptions& opt) {
     return exit_config;
   }
 
-#ifdef _OPENMP
-  const int threads = omp_get_max_threads();
-#else
-  const int threads = 1;
-#endif
+  const int threads = worker_threads();
   const std::string cpu = cpu_model(), git = git_describe(source_dir);
   const fs::path out = opt.out_dir.empty() ? fs::path("out/bench_contact") : fs::path(opt.out_dir);
   std::ofstream jl, csv;

@@ -409,11 +409,7 @@ int bench_hair(const BenchHairOptions& opt) {
       if (from_csv(line, r)) runs.push_back(r);
     }
   }
-#ifdef _OPENMP
-  const int threads = omp_get_max_threads();
-#else
-  const int threads = 1;
-#endif
+  const int threads = worker_threads();
   const std::string cpu = cpu_model(), git = git_describe(source_dir);
   std::ofstream jl, csv;
   try {

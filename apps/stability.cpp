@@ -12,10 +12,6 @@
 #include <fstream>
 #include <map>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "framework/scene.hpp"
 #include "framework/writers.hpp"
 #include "policies/registry.hpp"
@@ -160,12 +156,7 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
   std::filesystem::create_directories(opt.out_dir);
   {
     // What made this sweep: the build, the machine and the command, beside its table.
-#ifdef _OPENMP
-    const int threads = omp_get_max_threads();
-#else
-    const int threads = 1;
-#endif
-    Json meta = meta_record("stability", git_describe(source_dir()), cpu_model(), threads);
+    Json meta = meta_record("stability", git_describe(source_dir()), cpu_model(), worker_threads());
     meta["scene"] = opt.scene;
     meta["overrides"] = opt.overrides;
     meta["combos"] = opt.combos;

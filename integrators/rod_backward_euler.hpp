@@ -189,8 +189,7 @@ class RodBackwardEuler {
       return rep;
     }
     second.iterations += rep.iterations;
-    second.initial_residual = rep.initial_residual;
-    second.round_off_steps += rep.round_off_steps;
+    second.initial_residual = rep.initial_residual;  // round_off_steps: `second` started from the first attempt's count
     second.stop_reason += fmt::format(" (from the {}, after the {} failed: {})", from_leader ? "guess h v" : "follow-the-leader projection",
                                       from_leader ? "follow-the-leader projection" : "guess h v", rep.message);
     return second;
