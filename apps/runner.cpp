@@ -315,6 +315,9 @@ int run_scene(const RunOptions& opt) {
       spdlog::info("resumed from {} at step {} (t = {} s), written by combo {}", opt.resume, step0, sim->state().t,
                    resumed->header.value("combo", "?"));
   }
+  if (resumed && resumed->header.contains("resume_caveats") && resumed->header["resume_caveats"].is_array())
+    for (const Json& why : resumed->header["resume_caveats"])  // the run goes on, but not to the bit
+      spdlog::warn("the resumed run will not repeat the uninterrupted one to the bit: {}", why.is_string() ? why.get<std::string>() : why.dump());
 
   int files = 0, frames_written = 0, steps = 0;
   for (int k = 0; k < frame0; ++k) writer.adopt(k, static_cast<double>(k) * spf * time.dt);  // resumed: frames on disk stay in the .pvd

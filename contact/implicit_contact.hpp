@@ -120,6 +120,10 @@ class ImplicitContact {
     return obstacles_.redetect(start, trial, dt, vertices, converged);
   }
   ContactReport end_step(State& s, double dt);
+  /// Checkpoints: the obstacle contacts' state (ObstacleConstraints::save); the springs
+  /// are made afresh at every step, and the detectors' output does not depend on their history.
+  void save(Checkpoint& c, std::string_view prefix) const { obstacles_.save(c, prefix); }
+  void restore(const Checkpoint& c, std::string_view prefix) { obstacles_.restore(c, prefix); }
 
   const Params& params() const { return prm_; }
   const std::vector<Spring>& springs() const { return springs_; }

@@ -111,6 +111,7 @@ class CollisionDetector;
 class Impulse {
  public:
   static constexpr std::string_view name = "impulse";
+  static constexpr bool stateless = true;  ///< checkpoints: x0 and the poses are taken at each begin_step; the BVH output does not depend on its history
   /// No potential terms: energy 0, no gradient, no Hessian (a zero potential, as for
   /// `NoContact`), so a minimising integrator may use it; all the work is in `end_step`.
   static constexpr bool provides_potential = true;

@@ -84,6 +84,7 @@ class CollisionDetector;
 class LinearCompliance {
  public:
   static constexpr std::string_view name = "linear_compliance";
+  static constexpr bool stateless = true;  ///< checkpoints: x0, the poses and the system are taken at each step; the BVH output does not depend on its history
   /// No potential terms (a zero potential, as `Impulse`): a minimising integrator may use it.
   static constexpr bool provides_potential = true;
 

@@ -11,6 +11,7 @@ namespace weft::contact {
 class NoContact {
  public:
   static constexpr std::string_view name = "none";
+  static constexpr bool stateless = true;  ///< checkpoints: nothing kept
   static constexpr bool provides_potential = true;  // a zero potential
   static constexpr bool inert = true;               // the simulator skips the contact stage
   struct Params {

@@ -22,6 +22,68 @@ ObstacleConstraints::ObstacleConstraints(const Scene& scene, const Params& prm)
   }
 }
 
+namespace {
+constexpr int contact_record = 13;  // vertex, obstacle, mode, normal force, slip, friction, anchor
+}
+
+void ObstacleConstraints::save(Checkpoint& c, std::string_view prefix) const {
+  std::vector<double> rec, rel;
+  rec.reserve(contact_record * contacts_.size());
+  for (const Contact& k : contacts_) {
+    rec.insert(rec.end(), {double(k.vertex), double(k.obstacle), double(static_cast<int>(k.mode)), k.normal_force});
+    for (const Eigen::Vector3d* v : {&k.slip, &k.friction, &k.anchor}) rec.insert(rec.end(), v->data(), v->data() + 3);
+  }
+  const long long no = static_cast<long long>(obstacles_.size());
+  for (long long k : released_) rel.insert(rel.end(), {double(k / no), double(k % no)});
+  c.put(std::string(prefix) + "contacts", std::move(rec));
+  c.put(std::string(prefix) + "released", std::move(rel));
+}
+
+void ObstacleConstraints::restore(const Checkpoint& c, std::string_view prefix) {
+  const std::string cname = std::string(prefix) + "contacts", rname = std::string(prefix) + "released";
+  if (!c.has(cname) && !c.has(rname)) {
+    contacts_.clear();
+    released_.clear();
+    return;
+  }
+  const int nv = static_cast<int>(free_.size()), no = static_cast<int>(obstacles_.size());
+  const auto pair = [&](const std::string& name, double v, double o) {
+    if (!(v >= 0 && v < nv && o >= 0 && o < no && v == std::floor(v) && o == std::floor(o)))
+      throw ConfigError(fmt::format("checkpoint array '{}': vertex {} with obstacle {} is not a pair of this scene ({} vertices, {} obstacles)",
+                                    name, v, o, nv, no));
+  };
+  const std::vector<double>& rec = c.get(cname);
+  const std::vector<double>& rel = c.get(rname);
+  if (rec.size() % contact_record != 0)
+    throw ConfigError(fmt::format("checkpoint array '{}' has {} values, not a multiple of {}", cname, rec.size(), contact_record));
+  if (rel.size() % 2 != 0) throw ConfigError(fmt::format("checkpoint array '{}' has {} values, not pairs", rname, rel.size()));
+  std::vector<Contact> contacts(rec.size() / contact_record);
+  for (size_t k = 0; k < contacts.size(); ++k) {
+    const double* r = rec.data() + contact_record * k;
+    pair(cname, r[0], r[1]);
+    if (!(r[2] == 0 || r[2] == 1 || r[2] == 2)) throw ConfigError(fmt::format("checkpoint array '{}': contact {} has mode {} (valid: 0, 1, 2)", cname, k, r[2]));
+    Contact& q = contacts[k];
+    q.vertex = static_cast<int>(r[0]);
+    q.obstacle = static_cast<int>(r[1]);
+    q.mode = static_cast<Mode>(static_cast<int>(r[2]));
+    q.normal_force = r[3];
+    q.slip = Eigen::Vector3d(r[4], r[5], r[6]);
+    q.friction = Eigen::Vector3d(r[7], r[8], r[9]);
+    q.anchor = Eigen::Vector3d(r[10], r[11], r[12]);
+  }
+  std::vector<long long> released;
+  for (size_t k = 0; k < rel.size(); k += 2) {
+    pair(rname, rel[k], rel[k + 1]);
+    released.push_back(key(static_cast<int>(rel[k]), static_cast<int>(rel[k + 1]), no));
+  }
+  std::sort(released.begin(), released.end());
+  const auto by_key = [no](const Contact& a, const Contact& b) { return key(a.vertex, a.obstacle, no) < key(b.vertex, b.obstacle, no); };
+  if (!std::is_sorted(contacts.begin(), contacts.end(), by_key))
+    throw ConfigError(fmt::format("checkpoint array '{}': contacts not sorted by vertex and obstacle", cname));
+  contacts_ = std::move(contacts);
+  released_ = std::move(released);
+}
+
 Eigen::Vector3d ObstacleConstraints::carry(int o, const Eigen::Vector3d& x) const {
   if (obstacles_[o].motion.is_static()) return x;  // exactly, so a vertex at rest has no relative slip
   const ObstaclePose &a = start_[o], &b = end_[o];

@@ -109,6 +109,7 @@
 #include <vector>
 
 #include "contact/obstacle_penalty.hpp"
+#include "framework/checkpoint.hpp"
 #include "framework/concepts.hpp"
 #include "framework/constraints.hpp"
 #include "framework/params.hpp"
@@ -219,6 +220,13 @@ class ObstacleConstraints {
 
   /// Release, friction modes and the projection (file comment). `s` holds q_{k+1}, v_{k+1}.
   ContactReport end_step(State& s, double dt);
+
+  /// Checkpoints: what a step hands the next, the contacts (`contacts`: vertex, obstacle,
+  /// mode, normal force, slip, friction force and anchor, 13 values each) and the pairs
+  /// released at the end of the step (`released`: vertex, obstacle). A checkpoint without
+  /// them (another contact strategy) restores no contacts, as at the start of a run.
+  void save(Checkpoint& c, std::string_view prefix) const;
+  void restore(const Checkpoint& c, std::string_view prefix);
 
   /// The active contacts of the current step.
   const std::vector<Contact>& contacts() const { return contacts_; }

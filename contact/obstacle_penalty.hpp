@@ -52,6 +52,7 @@ struct ObstaclePose {
 class ObstaclePenalty {
  public:
   static constexpr std::string_view name = "obstacle_penalty";
+  static constexpr bool stateless = true;  ///< checkpoints: the poses are taken at each begin_step
   static constexpr bool provides_potential = true;
   struct Params {
     std::optional<double> stiffness;  ///< kappa [1/s^2]; required: no safe default exists

@@ -56,8 +56,8 @@ class SimulatorAdapter final : public AnySimulator {
     if constexpr (Checkpointable<Sim>)
       return "";
     else
-      return fmt::format("combination {} does not write checkpoints: its cloth policies keep state between steps (contact sets, "
-                         "repulsion springs, warm starts) that checkpoints do not hold yet; rod combinations do",
+      return fmt::format("combination {} does not write checkpoints: one of its policies keeps state between steps without "
+                         "saving it (framework/checkpoint.hpp: declare it stateless, or give it save and restore)",
                          combo_);
   }
   Checkpoint checkpoint() const override {

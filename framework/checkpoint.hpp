@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -33,7 +34,35 @@ struct Checkpoint {
   /// `expected_size` >= 0 and its size differs.
   const std::vector<double>& get(const std::string& name, long long expected_size = -1) const;
   bool has(const std::string& name) const;
+  /// One value, as an array of size 1.
+  void put_scalar(std::string name, double value) { put(std::move(name), std::vector<double>{value}); }
+  double get_scalar(const std::string& name) const { return get(name, 1)[0]; }
 };
+
+/// The state a cloth `Simulator`'s policy carries from one step to the next, in a
+/// checkpoint. A policy takes part in checkpoints in one of two ways:
+///  - it declares `static constexpr bool stateless = true`: nothing it holds between two
+///    steps changes what the next step computes (caches rebuilt the same from the state,
+///    such as a BVH whose output is sorted, or a symbolic factorisation of the same pattern);
+///  - it has `save(Checkpoint&, std::string_view prefix) const`, which appends arrays named
+///    `prefix` + name (and header keys under header[prefix]), and `restore(const
+///    Checkpoint&, std::string_view prefix)`, which reads them back: arrays of the wrong
+///    size are a ConfigError naming the array (the policy unchanged then); when all of
+///    them are missing (a checkpoint of another combination, to replay a step with other
+///    policies) the policy starts as at the start of a run.
+/// A policy that does neither makes its combination refuse checkpoints: nothing is saved
+/// by guess. It may also say, with `std::string resume_caveat() const`, why a resumed run
+/// will not repeat the uninterrupted one to the bit (a kept preconditioner hierarchy is
+/// rebuilt at the first solve after a restore); "" when it will.
+template <class P>
+concept StatelessPolicy = requires { requires P::stateless; };
+template <class P>
+concept SavesState = requires(const P& p, P& m, Checkpoint& c, const Checkpoint& cc, std::string_view prefix) {
+  p.save(c, prefix);
+  m.restore(cc, prefix);
+};
+template <class P>
+concept CheckpointPolicy = StatelessPolicy<P> || SavesState<P>;
 
 /// Write atomically (a temporary file renamed when complete); throws std::runtime_error on I/O failure.
 void write_checkpoint(const std::string& path, const Checkpoint& c);

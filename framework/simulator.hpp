@@ -7,11 +7,13 @@
 
 #include <cmath>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <fmt/format.h>
 
 #include "framework/block_csr.hpp"
+#include "framework/checkpoint.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params_json.hpp"
 #include "framework/scene.hpp"
@@ -48,6 +50,11 @@ class Simulator {
   using IntegratorType = Integ;
   using ContactType = Contact;
   using LinearType = Linear;
+  /// Every policy is stateless between steps or saves its state (framework/checkpoint.hpp):
+  /// the simulator then writes and reads checkpoints, and a step that fails leaves it where
+  /// the step started.
+  static constexpr bool checkpointable =
+      CheckpointPolicy<Energy> && CheckpointPolicy<Integ> && CheckpointPolicy<Contact> && CheckpointPolicy<Linear>;
 
   /// The params tree; its sections are the scene file's "energy", "integrator",
   /// "contact" and "linear" objects.
@@ -101,10 +108,16 @@ class Simulator {
   /// step that fails is retried from its start as two steps of dt/2 (recursively): the report
   /// then counts the substeps, keeps the first failure in `retry_reason` and includes the time
   /// spent on the failed attempts.
+  ///
+  /// A step that fails leaves the state (and, when `checkpointable`, the policies' state:
+  /// contact sets, friction modes, warm starts) as they were at its start, so that the
+  /// failure replays from a checkpoint taken then; only the step counter moves.
   StepReport step() {
     const double dt = scene_.spec.time.dt;
     ++steps_;
+    const Snapshot start = snapshot();
     StepReport rep = advance(dt, scene_.spec.time.max_subdivisions);
+    if (!rep.ok()) rollback(start);
     rep.step = steps_;
     rep.dt = dt;
     if (rep.ok())
@@ -137,14 +150,97 @@ class Simulator {
     return g;
   }
 
+  /// The state between two steps, to the bit: time, step count, positions, velocities and
+  /// the policies' state (framework/checkpoint.hpp). Header: "kind" = "cloth", "step",
+  /// "time", "vertices", and "resume_caveats" (why a resumed run would not repeat this one
+  /// to the bit; empty when it will).
+  void save(Checkpoint& c) const
+    requires checkpointable
+  {
+    c.header["kind"] = "cloth";
+    c.header["step"] = steps_;
+    c.header["time"] = state_.t;
+    c.header["vertices"] = state_.num_vertices();
+    Json caveats = Json::array();
+    const auto caveat = [&](const auto& policy) {
+      if constexpr (requires { { policy.resume_caveat() } -> std::convertible_to<std::string>; })
+        if (std::string why = policy.resume_caveat(); !why.empty()) caveats.push_back(why);
+    };
+    caveat(energy_), caveat(integrator_), caveat(contact_), caveat(linear_);
+    c.header["resume_caveats"] = caveats;
+    c.put("x", state_.x);
+    c.put("v", state_.v);
+    save_policies(c);
+  }
+  /// Continue from a state `save` wrote, with this scene's mesh, motions and parameters
+  /// (they may differ from the run that wrote it, e.g. to replay a failing step with other
+  /// parameters; the vertex count must match). Throws ConfigError naming what does not
+  /// match; the simulator is unchanged then.
+  void restore(const Checkpoint& c)
+    requires checkpointable
+  {
+    const Json& h = c.header;
+    if (h.value("kind", "") != "cloth")
+      throw ConfigError(fmt::format("checkpoint holds a '{}' state; this combination simulates cloth", h.value("kind", "?")));
+    if (!h.contains("step") || !h["step"].is_number_integer() || !h.contains("time") || !h["time"].is_number() ||
+        !h.contains("vertices") || !h["vertices"].is_number_integer())
+      throw ConfigError("checkpoint header lacks 'step', 'time' or 'vertices'");
+    if (h["vertices"].get<long long>() != state_.num_vertices())
+      throw ConfigError(fmt::format("checkpoint holds {} vertices; this scene's mesh has {}", h["vertices"].dump(), state_.num_vertices()));
+    const long long n = 3LL * state_.num_vertices();
+    const auto& x = c.get("x", n);
+    const auto& v = c.get("v", n);
+    const Snapshot before = snapshot();
+    try {
+      restore_policies(c);
+    } catch (...) {
+      rollback(before);  // a policy's array was missing or of the wrong size
+      throw;
+    }
+    state_.x = Eigen::Map<const Eigen::VectorXd>(x.data(), n);
+    state_.v = Eigen::Map<const Eigen::VectorXd>(v.data(), n);
+    state_.t = h["time"].get<double>();
+    steps_ = h["step"].get<int>();
+    if constexpr (HasBeginStep<Energy>) energy_.begin_step(state_, state_.t);  // animated rest shapes at t
+  }
+
  private:
+  // The state at a step's start: the policies' too when they take part in checkpoints.
+  struct Snapshot {
+    State state;
+    Checkpoint policies;
+  };
+  Snapshot snapshot() const {
+    Snapshot s{state_, {}};
+    if constexpr (checkpointable) save_policies(s.policies);
+    return s;
+  }
+  void rollback(const Snapshot& s) {
+    state_ = s.state;
+    if constexpr (checkpointable) restore_policies(s.policies);
+    if constexpr (HasBeginStep<Energy>) energy_.begin_step(state_, state_.t);  // animated rest shapes back at t
+  }
+  // The policies' arrays, prefixed by their section of the params tree.
+  void save_policies(Checkpoint& c) const {
+    if constexpr (SavesState<Energy>) energy_.save(c, "energy.");
+    if constexpr (SavesState<Integ>) integrator_.save(c, "integrator.");
+    if constexpr (SavesState<Contact>) contact_.save(c, "contact.");
+    if constexpr (SavesState<Linear>) linear_.save(c, "linear.");
+  }
+  void restore_policies(const Checkpoint& c) {
+    if constexpr (SavesState<Energy>) energy_.restore(c, "energy.");
+    if constexpr (SavesState<Integ>) integrator_.restore(c, "integrator.");
+    if constexpr (SavesState<Contact>) contact_.restore(c, "contact.");
+    if constexpr (SavesState<Linear>) linear_.restore(c, "linear.");
+  }
+
   // Advances by dt, as 2^k substeps when an attempt fails and `depth` allows it.
   StepReport advance(double dt, int depth) {
     if (depth == 0) return attempt(dt);
-    const State start = state_;  // the policies leave the state alone only when the integrator fails
+    const Snapshot start = snapshot();  // the retry starts where the failed attempt did
     StepReport first = attempt(dt);
     if (first.ok() || first.status == Status::invalid_input || first.status == Status::interrupted) return first;
-    state_ = start;
+    rollback(start);
     StepReport rep = advance(0.5 * dt, depth - 1);
     if (rep.ok()) rep.merge_substep(advance(0.5 * dt, depth - 1));
     rep.times += first.times;

@@ -16,6 +16,7 @@ namespace weft::integrators {
 class BackwardEulerRoot {
  public:
   static constexpr std::string_view name = "backward_euler_root";
+  static constexpr bool stateless = true;  ///< checkpoints: the displacement is scratch of each step
   static constexpr bool minimizes_potential = false;
 
   /// As the incremental potential's, but exact Jacobians by default: root finding needs no

@@ -9,6 +9,7 @@
 /// strategy are those of that linear system.
 #include <string_view>
 
+#include "framework/checkpoint.hpp"
 #include "framework/concepts.hpp"
 #include "framework/simulator.hpp"
 #include "integrators/newton.hpp"
@@ -54,6 +55,14 @@ class LinearlyImplicit {
       commit(p, d_);
     }
     return finish(rep, f);
+  }
+
+  /// Checkpoints: the Levenberg-Marquardt shift hint is the state one step hands the next
+  /// (a checkpoint of an integrator without it, e.g. to replay with another: 0, as at the start).
+  void save(Checkpoint& c, std::string_view prefix) const { c.put_scalar(std::string(prefix) + "shift_hint", shift_hint_); }
+  void restore(const Checkpoint& c, std::string_view prefix) {
+    const std::string name = std::string(prefix) + "shift_hint";
+    shift_hint_ = c.has(name) ? c.get_scalar(name) : 0.0;
   }
 
  private:

@@ -24,6 +24,8 @@ namespace weft::linear {
 class Direct {
  public:
   static constexpr std::string_view name = "direct";
+  /// Checkpoints: the symbolic analysis is redone the same from the same pattern.
+  static constexpr bool stateless = true;
   struct Params {
     bool check_residual = true;  ///< compute ||S (b - A x)|| / ||S b|| after each solve (one extra product; S = I without constraints)
     template <class V>

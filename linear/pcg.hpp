@@ -62,6 +62,17 @@ enum class PreconditionerSetup {
 };
 inline constexpr std::array<std::string_view, 2> preconditioner_setup_names = {"every_factorize", "once_per_pattern"};
 
+template <class PrecondParams>
+struct KrylovParams;
+
+namespace detail {
+/// Why a run resumed from a checkpoint (framework/checkpoint.hpp) would not repeat the
+/// uninterrupted one to the bit: a preconditioner kept across solves is rebuilt at the
+/// first solve after the restore, from another matrix than the one it was built from.
+template <class PrecondParams>
+std::string kept_preconditioner_caveat(const KrylovParams<PrecondParams>& p);
+}  // namespace detail
+
 /// Parameters of the Krylov solvers; the preconditioner's own parameters nest under
 /// "preconditioner" when they have a `visit`.
 template <class PrecondParams>
@@ -195,6 +206,9 @@ template <Preconditioner P>
 class ModifiedPcg {
  public:
   static constexpr std::string_view name = "mpcg";
+  /// Nothing carried between steps changes the next one (checkpoints), except a kept
+  /// preconditioner: `resume_caveat`.
+  static constexpr bool stateless = true;
   using Params = KrylovParams<typename P::Params>;
 
   explicit ModifiedPcg(const Params& prm);
@@ -211,6 +225,7 @@ class ModifiedPcg {
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
+  std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }
 
  private:
   const ConstraintSet* constraints() const {
@@ -242,6 +257,9 @@ template <Preconditioner P>
 class Ppcg {
  public:
   static constexpr std::string_view name = "ppcg";
+  /// Nothing carried between steps changes the next one (checkpoints), except a kept
+  /// preconditioner: `resume_caveat`.
+  static constexpr bool stateless = true;
   using Params = KrylovParams<typename P::Params>;
 
   explicit Ppcg(const Params& prm);
@@ -258,6 +276,7 @@ class Ppcg {
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
+  std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }
 
  private:
   const ConstraintSet* constraints() const { return pre_.active() ? pre_.context().constraints : nullptr; }
@@ -275,6 +294,16 @@ class Ppcg {
 
 extern template class ModifiedPcg<BlockJacobi>;
 extern template class Ppcg<BlockJacobi>;
+
+template <class PrecondParams>
+std::string detail::kept_preconditioner_caveat(const KrylovParams<PrecondParams>& p) {
+  if (p.setup == PreconditionerSetup::once_per_pattern)
+    return "linear.setup = once_per_pattern: the frozen preconditioner is rebuilt at the first solve after a restore";
+  if constexpr (requires { p.preconditioner.reuse; })
+    if (static_cast<int>(p.preconditioner.reuse) != 0)
+      return "linear.preconditioner.reuse is not none: the kept hierarchy is rebuilt at the first solve after a restore";
+  return "";
+}
 
 /// The thesis's baseline: MPCG with the 3x3 block-Jacobi preconditioner of A (without
 /// constraints: plain block-Jacobi PCG).

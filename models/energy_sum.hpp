@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "framework/block_csr.hpp"
+#include "framework/checkpoint.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params.hpp"
 #include "framework/scene.hpp"
@@ -35,6 +36,9 @@ class EnergySum {
     }
   };
   static constexpr std::string_view name = "energy_sum";
+  /// Checkpoints (framework/checkpoint.hpp): stateless when every term is (a term that
+  /// saves state would need its arrays forwarded here; none does).
+  static constexpr bool stateless = (StatelessPolicy<Terms> && ...);
 
   /// Every violation of every term's `validate` (terms without one are skipped).
   static Checker validate(const Params& prm) {

@@ -22,6 +22,7 @@ class Gravity {
     void visit(V&) {}
   };
   static constexpr std::string_view name = "gravity";
+  static constexpr bool stateless = true;  ///< checkpoints: nothing kept between steps
 
   Gravity(const Scene& scene, const Params& prm);
 

@@ -232,6 +232,7 @@ class HingeBending {
     }
   };
   static constexpr std::string_view name = "hinge_bending";
+  static constexpr bool stateless = true;  ///< checkpoints: rest angles fixed, the rest is per-call scratch
 
   /// Rest angles and stiffnesses of every interior edge. \throws ConfigError for degenerate
   /// rest hinges, negative bending stiffness, or (TanEnergy) a rest angle with |thetabar| ~ pi.

@@ -142,6 +142,9 @@ class StvkMembrane {
     void visit(V&) {}
   };
   static constexpr std::string_view name = "stvk_membrane";
+  /// Checkpoints: an animated rest state is a function of time, applied again by
+  /// `begin_step` (the simulator calls it at the restored time).
+  static constexpr bool stateless = true;
 
   /// Precomputes T per face at the rest state of t = 0.
   /// \throws ConfigError for invalid or unstable materials (`ShellMaterial::validate`), an

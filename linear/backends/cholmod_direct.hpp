@@ -34,6 +34,8 @@ namespace weft::linear {
 class CholmodDirect {
  public:
   static constexpr std::string_view name = "cholmod";
+  /// Checkpoints: the symbolic analysis is redone the same from the same pattern.
+  static constexpr bool stateless = true;
   struct Params {
     bool check_residual = true;  ///< report the true relative residual of each solve (one extra product)
     double min_rcond = 2.2e-13;  ///< below this (min L_jj / max L_jj)^2 the matrix counts as singular

@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <string>
 #include <string_view>
 
 #include "framework/block_csr.hpp"
@@ -47,6 +48,8 @@ namespace weft::linear {
 class PetscGamg {
  public:
   static constexpr std::string_view name = "petsc_gamg";
+  /// Checkpoints: the matrix structure is rebuilt the same; kept prolongators are not (resume_caveat).
+  static constexpr bool stateless = true;
   struct Params {
     double tolerance = 1e-5;      ///< ||r_i||_{M^-1} / ||r_0||_{M^-1} (spec 04 §8)
     int max_iterations = 1000;
@@ -88,6 +91,9 @@ class PetscGamg {
   double pc_setup_seconds() const { return pc_setup_seconds_; }  ///< last PCSetUp
   double assembly_seconds() const { return assembly_seconds_; }  ///< last matrix and near-null-space fill
   double threshold_used() const { return threshold_used_; }      ///< PETSc threshold of the last setup
+  std::string resume_caveat() const {
+    return prm_.reuse_interpolation ? "linear.reuse_interpolation: GAMG's prolongators are rebuilt at the first solve after a restore" : "";
+  }
 
  private:
   struct Impl;  // PETSc's headers stay out of this one

@@ -108,6 +108,66 @@ TEST_SUITE("apps") {
     CHECK_MESSAGE(fixed.code == 0, fixed.output);
   }
 
+  TEST_CASE("run: a cloth run with contact resumed from a checkpoint, or from the step that failed, goes on as the run that never stopped") {
+    // Two coarse sheets falling on a sphere under obstacle constraints with friction: the
+    // contact set and its friction modes carry from step to step (the checkpoint holds them).
+    const std::string scene = std::string(WEFT_SOURCE_DIR) + "/scenes/sheets_on_sphere.json";
+    const std::string o = "combo=cloth_ip_constraints_direct cloths.0.mesh.resolution=[9,9] cloths.1.mesh.resolution=[7,7] "
+                          "cloths.1.mesh.center=[0.03,0.02,0.0045] obstacles.0.center=[0,0,-0.2018] "
+                          "cloths.0.initial_velocity=[0,0,-1] cloths.1.initial_velocity=[0,0,-1]";
+    const auto dir = temp_dir("checkpoint_cloth");
+    const auto full = dir / "full", part = dir / "part";
+    const Result a = run_weft(fmt::format("run {} {} time.duration=0.25 -q -o {}", scene, o, full.string()));
+    REQUIRE_MESSAGE(a.code == 0, a.output);
+    const Result b = run_weft(fmt::format("run {} {} time.duration=0.125 -q --checkpoint-every 1 -o {}", scene, o, part.string()));
+    REQUIRE_MESSAGE(b.code == 0, b.output);
+    const Result c = run_weft(fmt::format("run {} {} time.duration=0.25 --resume {} -o {}", scene, o, (part / "checkpoint.wckp").string(), part.string()));
+    REQUIRE_MESSAGE(c.code == 0, c.output);
+    CHECK(c.output.find("resumed from") != std::string::npos);
+    for (const char* frame : {"lower0_0003.obj", "upper1_0003.obj", "lower0_0006.obj", "upper1_0006.obj"}) {
+      CAPTURE(frame);
+      REQUIRE(fs::exists(full / frame));
+      CHECK(slurp(full / frame) == slurp(part / frame));
+    }
+    const auto sa = read_jsonl(full / "stats.jsonl"), sb = read_jsonl(part / "stats.jsonl");
+    REQUIRE(sa.size() == 60);
+    REQUIRE(sb.size() == 60);
+    int contacts = 0;
+    for (size_t k = 30; k < sa.size(); ++k) {
+      CAPTURE(k);
+      CHECK(sb[k]["energy"] == sa[k]["energy"]);
+      contacts += sb[k]["contact"]["obstacle_contacts"].get<int>();
+    }
+    CHECK(contacts > 0);  // the resumed steps carry obstacle contacts
+
+    // A step that fails leaves failed_step.wckp, the state at its start, contact set
+    // included (the failed attempt's detection is undone): continued from step 30 with at
+    // most 6 Newton iterations, a step after the first few fails (step 35 takes 9). The
+    // checkpoint replays the same failure in one step; with the default iterations it goes on
+    // and ends where the run that never failed ends.
+    const std::string at30 = (part / "checkpoint.wckp").string();
+    const Result f = run_weft(fmt::format("run {} {} time.duration=0.25 integrator.max_iterations=6 --resume {} -o {}", scene, o, at30,
+                                          (dir / "f").string()));
+    CAPTURE(f.output);
+    REQUIRE(f.code == 3);
+    const json s = json::parse(slurp(dir / "f" / "summary.json"));
+    REQUIRE(s["failure"]["checkpoint"] == "failed_step.wckp");
+    CHECK(s["failure"]["step"].get<int>() > 31);
+    const std::string failed = (dir / "f" / "failed_step.wckp").string();
+    const Result replay = run_weft(fmt::format("run {} {} time.duration=0.25 integrator.max_iterations=6 --resume {} -o {}", scene, o, failed,
+                                               (dir / "g").string()));
+    CHECK(replay.code == 3);
+    const json t = json::parse(slurp(dir / "g" / "summary.json"));
+    CHECK(t["failure"]["step"] == s["failure"]["step"]);
+    CHECK(t["failure"]["reason"] == s["failure"]["reason"]);
+    CHECK(t["resumed_from"]["steps_run"] == 1);
+    const Result on = run_weft(fmt::format("run {} {} time.duration=0.25 -q --resume {} -o {}", scene, o, failed, (dir / "h").string()));
+    REQUIRE_MESSAGE(on.code == 0, on.output);
+    CHECK(slurp(dir / "h" / "lower0_0006.obj") == slurp(full / "lower0_0006.obj"));
+    CHECK(slurp(dir / "h" / "upper1_0006.obj") == slurp(full / "upper1_0006.obj"));
+    MESSAGE("the cloth step that fails with 6 Newton iterations: " << s["failure"]["step"] << ", " << s["failure"]["reason"]);
+  }
+
   TEST_CASE("run: checkpoint options that cannot work are refused with exit code 2 before anything is written") {
     const auto dir = temp_dir("checkpoint_refused");
     const auto out = dir / "out";
@@ -118,8 +178,6 @@ TEST_SUITE("apps") {
       CHECK(r.output.find(fault) != std::string::npos);
       CHECK(!fs::exists(out));
     };
-    const std::string cloth = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
-    refused(fmt::format("run {} --checkpoint-every 2", cloth), "does not write checkpoints");
     refused(fmt::format("run {} --checkpoint-every -1", whip), "--checkpoint-every -1: must be a number of frames >= 1 (0: none)");
     refused(fmt::format("run {} --resume {}", whip, whip), "not a weft checkpoint");
     refused(fmt::format("run {} --resume {}", whip, (dir / "none.wckp").string()), "cannot open the file");
@@ -133,6 +191,8 @@ TEST_SUITE("apps") {
     refused(fmt::format("run {} time.duration=0.05 --resume {}", whip, at_end),
             "at or after the scene's end, t = 0.04 s (2 frames of 0.02 s for time.duration = 0.05 s)");
     refused(fmt::format("run {} rods.0.vertices=40 --resume {}", whip, at_end), "checkpoint rod 0 has 119 DoFs; this scene's rod 0 has 159");
+    const std::string cloth = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
+    refused(fmt::format("run {} time.dt=0.01 time.frame_rate=25 --resume {}", cloth, at_end), "checkpoint holds a 'rods' state; this combination simulates cloth");
     // A state at t = 2.068 s (step 1034 of 2 ms) is not on the grid of 5 ms steps.
     const std::string at_2068 = std::string(WEFT_SOURCE_DIR) + "/tests/data/checkpoints/near_wall_whip_30v_2ms_after_step1034.wckp";
     refused(fmt::format("run {} time.dt=0.005 time.duration=3 --resume {}", whip, at_2068), "is not a multiple of time.dt = 0.005 s");

@@ -120,13 +120,4 @@ TEST_SUITE("rods") {
     cloth.header["kind"] = "cloth";
     CHECK_THROWS_WITH_AS(small->restore(cloth), "checkpoint holds a 'cloth' state; this combination simulates rods", ConfigError);
   }
-
-  TEST_CASE("checkpoint: cloth combinations say they do not write checkpoints, and why") {
-    auto cloth = make_simulator(load_scene(scene_path("hanging_cloth.json"), {"cloths.0.mesh.resolution=[5,5]"}));
-    const std::string why = cloth->checkpoint_unsupported();
-    CHECK(why.find("does not write checkpoints") != std::string::npos);
-    CHECK(why.find(std::string(cloth->combo())) != std::string::npos);
-    CHECK_THROWS_AS((void)cloth->checkpoint(), ConfigError);
-    CHECK(small_ball("rods_linear", 2)->checkpoint_unsupported().empty());
-  }
 }
