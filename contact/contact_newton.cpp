@@ -173,16 +173,22 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
     };
     // Levenberg-Marquardt direction: (J^T J + nu I) delta = -J^T f.
     const VectorXd g = dense ? VectorXd(Jd.transpose() * f) : VectorXd(J.transpose() * f);
+    // J^T J only when a Levenberg-Marquardt step is tried (most iterations take the Newton
+    // step; the product costs more than the LU of J).
     MatrixXd N;
     Eigen::SparseMatrix<double> Ns;
-    double d0 = std::numeric_limits<double>::min();
-    if (dense) {
-      N = Jd.transpose() * Jd;
-      d0 = std::max(d0, N.diagonal().maxCoeff());
-    } else {
-      Ns = J.transpose() * J;
-      for (int c = 0; c < n; ++c) d0 = std::max(d0, Ns.coeff(c, c));
-    }
+    double d0 = 0;  // largest diagonal entry of J^T J; 0: not formed yet
+    auto normal_matrix = [&] {
+      if (d0 > 0) return;
+      d0 = std::numeric_limits<double>::min();
+      if (dense) {
+        N = Jd.transpose() * Jd;
+        d0 = std::max(d0, N.diagonal().maxCoeff());
+      } else {
+        Ns = J.transpose() * J;
+        for (int c = 0; c < n; ++c) d0 = std::max(d0, Ns.coeff(c, c));
+      }
+    };
     auto levenberg_marquardt = [&](double nu) -> VectorXd {
       if (dense) {
         MatrixXd Nn = N;
@@ -263,6 +269,7 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
           ++res.stick_steps;
         }
         if (!(trial.merit <= 0.25 * merit)) {
+          normal_matrix();
           Trial lm = search(levenberg_marquardt(1e-10 * d0));
           if (lm.merit < trial.merit) {
             trial = std::move(lm);
@@ -274,6 +281,7 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
     bool moved = trial.step.size() > 0;
     if (!moved) {  // Levenberg-Marquardt with nu raised until the merit decreases
       ++res.fallbacks;
+      normal_matrix();
       for (double nu = 1e-8 * d0; !moved && nu <= 1e2 * d0; nu *= 100) {
         trial = search(levenberg_marquardt(nu));
         moved = trial.step.size() > 0;
