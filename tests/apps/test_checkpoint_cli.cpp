@@ -86,7 +86,7 @@ TEST_SUITE("apps") {
     CHECK(slurp(dir / "continued" / last) == slurp(dir / "full" / last));
   }
 
-  TEST_CASE("run: a failing rod step leaves failed_step.wckp, which replays the failure in one step") {
+  TEST_CASE("run: a failing rod step leaves failed_step.wckp which replays the failure in one step") {
     const auto dir = temp_dir("checkpoint_failed");
     // Two Newton iterations are too few for the rod DEL of the first step.
     const Result r = run_weft(fmt::format("run {} time.duration=0.1 integrator.max_iterations=2 -o {}", whip, (dir / "a").string()));
@@ -108,7 +108,7 @@ TEST_SUITE("apps") {
     CHECK_MESSAGE(fixed.code == 0, fixed.output);
   }
 
-  TEST_CASE("run: a cloth run with contact resumed from a checkpoint, or from the step that failed, goes on as the run that never stopped") {
+  TEST_CASE("run: a cloth run with contact resumed from a checkpoint or from the step that failed goes on as the run that never stopped") {
     // Two coarse sheets falling on a sphere under obstacle constraints with friction: the
     // contact set and its friction modes carry from step to step (the checkpoint holds them).
     const std::string scene = std::string(WEFT_SOURCE_DIR) + "/scenes/sheets_on_sphere.json";

@@ -39,7 +39,7 @@ TEST_SUITE("apps") {
     CHECK(bad.code != 0);
   }
 
-  TEST_CASE("cli: --version, summary.json, checkpoints and stability sweeps name the commit the binary was built from") {
+  TEST_CASE("cli: --version and summary.json and checkpoints and stability sweeps name the commit the binary was built from") {
     const Result v = run_weft("--version");
     REQUIRE(v.code == 0);
     std::smatch m;

@@ -111,7 +111,7 @@ Run run(const Scene& scene, int steps, const Checkpoint* from = nullptr, std::st
 }  // namespace
 
 TEST_SUITE("contact") {
-  TEST_CASE("cloth: a run resumed from a checkpoint file ends bitwise where the uninterrupted run ends, for every cloth combination") {
+  TEST_CASE("cloth: a run resumed from a checkpoint file ends bitwise where the uninterrupted run ends for every cloth combination") {
     int tested = 0;
     for (const ComboInfo& c : combos()) {
       if (c.energy.find("discrete_elastic_rod") != std::string_view::npos) continue;
@@ -184,7 +184,7 @@ TEST_SUITE("contact") {
     CHECK(cold.solves > straight.solves);
   }
 
-  TEST_CASE("cloth: every pre-built combination writes checkpoints; a kept preconditioner is named as a caveat") {
+  TEST_CASE("cloth: every pre-built combination writes checkpoints and a kept preconditioner is named as a caveat") {
     for (const ComboInfo& c : combos()) {  // the rod combinations: test_rod_checkpoint.cpp
       if (c.energy.find("discrete_elastic_rod") != std::string_view::npos) continue;
       CAPTURE(c.key);
@@ -201,7 +201,7 @@ TEST_SUITE("contact") {
     CHECK(kept->checkpoint().header["resume_caveats"].size() == 1);
   }
 
-  TEST_CASE("cloth: a checkpoint that does not fit is refused naming what differs, and the simulator stays as it was") {
+  TEST_CASE("cloth: a checkpoint that does not fit is refused naming what differs and the simulator stays as it was") {
     auto sim = make_simulator(sheets("cloth_ip_constraints_direct"));
     for (int k = 0; k < 3; ++k) REQUIRE(sim->step().ok());
     const Checkpoint good = sim->checkpoint();
@@ -247,7 +247,7 @@ TEST_SUITE("contact") {
     CHECK(sim->state().x == twin->state().x);
   }
 
-  TEST_CASE("cloth: a step that fails leaves the simulator at its start, contact state included") {
+  TEST_CASE("cloth: a step that fails leaves the simulator at its start with its contact state") {
     // One Newton iteration cannot converge: step 5 fails. The failed attempt moved the contact
     // set (begin_step); the simulator puts it back, so a checkpoint taken now is the step's start.
     const Scene good = sheets("cloth_ip_constraints_direct");

@@ -254,7 +254,7 @@ TEST_SUITE("rods") {
 }
 
 TEST_SUITE("slow") {
-  TEST_CASE("hairball: the convergent contact solve holds V-21's step 22 (one group of 1600 contacts), where 50 Newton steps stopped at 1e-5 m") {
+  TEST_CASE("hairball: the convergent contact solve holds V-21's step 22 (one group of 1600 contacts) where 50 Newton steps stopped at 1e-5 m") {
     // From the state before step 22 of V-21 with end-overlap contacts. Gauss-Seidel leaves the
     // big group at residuals up to 5e-4 m; Newton takes it to contact_tol = 1e-8 m, but from
     // there about 45 damped steps come before the fast local convergence (66 steps in the

@@ -36,7 +36,7 @@ std::string scratch(const std::string& name) {
 }  // namespace
 
 TEST_SUITE("rods") {
-  TEST_CASE("rods: a run resumed from a checkpoint file ends bitwise where the uninterrupted run ends, for every strategy") {
+  TEST_CASE("rods: a run resumed from a checkpoint file ends bitwise where the uninterrupted run ends for every strategy") {
     for (const std::string combo : {"rods_impulse", "rods_linear", "rods_adonis", "rods_staggered"}) {
       CAPTURE(combo);
       auto straight = small_ball(combo), first = small_ball(combo);
@@ -100,7 +100,7 @@ TEST_SUITE("rods") {
     CHECK(staggered->state().t == 5 * staggered->scene().spec.time.dt);
   }
 
-  TEST_CASE("rods: a checkpoint of other rods is refused naming the difference, and the state stays as it was") {
+  TEST_CASE("rods: a checkpoint of other rods is refused naming the difference and the state stays as it was") {
     auto small = small_ball("rods_adonis", 8);
     REQUIRE(small->step().ok());
     const Checkpoint c8 = small->checkpoint();

@@ -32,7 +32,7 @@ std::string refusal(const std::string& path) {
 }
 }  // namespace
 
-TEST_CASE("checkpoint: arrays and header come back bitwise, subnormals, signed zeros and infinities included") {
+TEST_CASE("checkpoint: arrays and header come back bitwise with subnormals and signed zeros and infinities") {
   Checkpoint c;
   c.header["kind"] = "rods";
   c.header["time"] = 0.1 + 0.2;  // 0.30000000000000004
@@ -65,7 +65,7 @@ TEST_CASE("checkpoint: arrays and header come back bitwise, subnormals, signed z
   CHECK_THROWS_WITH_AS(d.get("velocities"), "checkpoint has no array 'velocities'", ConfigError);
 }
 
-TEST_CASE("checkpoint: a missing, foreign, newer or truncated file is refused naming the file and the fault") {
+TEST_CASE("checkpoint: a missing or foreign or newer or truncated file is refused naming the file and the fault") {
   Checkpoint c;
   c.header["step"] = 1;
   c.put("q", std::vector<double>(100, 1.5));

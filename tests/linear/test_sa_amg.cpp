@@ -456,7 +456,7 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 2, .implicit_prolongator = true}), ConfigError);
 }
 
-TEST_CASE("sa: theta moves the smoothing filter between few couplings and unfiltered smoothing, aggregates fixed by aggregation_theta, and keeps the V-cycle SPD") {
+TEST_CASE("sa: theta moves the smoothing filter between few couplings and unfiltered smoothing with aggregates fixed by aggregation_theta and keeps the V-cycle SPD") {
   // theta only sets the smoothing filter's threshold: the aggregates stay those of
   // aggregation_theta, P widens as theta falls, and with every coupling kept (no special node
   // on the unpinned sheet) P is the unfiltered smoother's. theta = aggregation_theta is the
