@@ -168,6 +168,28 @@ TEST_SUITE("apps") {
     MESSAGE("the cloth step that fails with 6 Newton iterations: " << s["failure"]["step"] << ", " << s["failure"]["reason"]);
   }
 
+  TEST_CASE("run: --resume warns when the checkpoint names why the run will not repeat the uninterrupted one to the bit") {
+    // A preconditioner frozen per pattern is rebuilt at the first solve after the restore.
+    const std::string scene = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
+    const std::string o = "cloths.0.mesh.resolution=[9,9] combo=cloth_ip_sa_ppcg linear.setup=once_per_pattern";
+    const auto dir = temp_dir("checkpoint_caveat");
+    const Result a = run_weft(fmt::format("run {} {} time.duration=0.1 -q --checkpoint-every 1 -o {}", scene, o, (dir / "a").string()));
+    REQUIRE_MESSAGE(a.code == 0, a.output);
+    const Result b = run_weft(fmt::format("run {} {} time.duration=0.2 --resume {} -o {}", scene, o, (dir / "a" / "checkpoint.wckp").string(),
+                                          (dir / "b").string()));
+    CAPTURE(b.output);
+    REQUIRE(b.code == 0);
+    CHECK(b.output.find("will not repeat the uninterrupted one to the bit: linear.setup = once_per_pattern") != std::string::npos);
+    // The default setup has no caveat.
+    const Result c = run_weft(fmt::format("run {} cloths.0.mesh.resolution=[9,9] combo=cloth_ip_sa_ppcg time.duration=0.1 -q --checkpoint-every 1 -o {}",
+                                          scene, (dir / "c").string()));
+    REQUIRE_MESSAGE(c.code == 0, c.output);
+    const Result d = run_weft(fmt::format("run {} cloths.0.mesh.resolution=[9,9] combo=cloth_ip_sa_ppcg time.duration=0.2 --resume {} -o {}",
+                                          scene, (dir / "c" / "checkpoint.wckp").string(), (dir / "d").string()));
+    REQUIRE_MESSAGE(d.code == 0, d.output);
+    CHECK(d.output.find("will not repeat") == std::string::npos);
+  }
+
   TEST_CASE("run: checkpoint options that cannot work are refused with exit code 2 before anything is written") {
     const auto dir = temp_dir("checkpoint_refused");
     const auto out = dir / "out";
