@@ -271,7 +271,7 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
         // Levenberg-Marquardt only when neither step decreased the merit: its J^T J and
         // LDL^T cost more than the rest of the iteration, and in the damped phase of a big
         // group (8 % decrease per Newton step) it rarely won yet was paid every iteration
-        // (V-21 steps 22-24, 1600 contacts: 64.8 s instead of 175.5 s, fewer Newton steps).
+        // (V-21 steps 22-24, 1600 contacts: 65.7 s instead of 175.5 s, fewer Newton steps).
         if (!(trial.merit < merit)) {
           normal_matrix();
           Trial lm = search(levenberg_marquardt(1e-10 * d0));
