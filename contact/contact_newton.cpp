@@ -268,11 +268,7 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
           trial = std::move(st);
           ++res.stick_steps;
         }
-        // Levenberg-Marquardt only when neither step decreased the merit: its J^T J and
-        // LDL^T cost more than the rest of the iteration, and in the damped phase of a big
-        // group (8 % decrease per Newton step) it rarely won yet was paid every iteration
-        // (V-21 steps 22-24, 1600 contacts: 65.7 s instead of 175.5 s, fewer Newton steps).
-        if (!(trial.merit < merit)) {
+        if (!(trial.merit <= 0.25 * merit)) {
           normal_matrix();
           Trial lm = search(levenberg_marquardt(1e-10 * d0));
           if (lm.merit < trial.merit) {

@@ -25,14 +25,12 @@
 ///  3. Armijo backtracking on the merit 1/2 |Phi|^2 of the unregularised problem; the step is
 ///     handed to the caller (`apply`), which updates its state, and u is read back from it;
 ///  4. when that step does not divide the merit by 4 (redundant contacts make J singular and
-///     the load split between them non-unique), the stick step competes with it (every
-///     pressed contact sticks: one linear system u_k + (W delta)_k = 0 with a 1e-10 s
-///     diagonal, which keeps the split of exact duplicates) and the lower merit wins; when
-///     neither decreases the merit, a lightly regularised Levenberg-Marquardt step (J^T J +
-///     nu I) delta = -J^T Phi, with nu raised until the merit decreases, then
-///     `fallback_sweeps` Gauss-Seidel sweeps (the caller's `sweep`). (Until 2026-11-29 the
-///     Levenberg-Marquardt step competed whenever the merit fell by less than 4; its J^T J
-///     and factorisation cost most of the solve on a hair-ball group and rarely won.)
+///     the load split between them non-unique), two steps compete and the lowest merit wins:
+///     the stick step (every pressed contact sticks: one linear system u_k + (W delta)_k = 0
+///     with a 1e-10 s diagonal, which keeps the split of exact duplicates) and a lightly
+///     regularised Levenberg-Marquardt step (J^T J + nu I) delta = -J^T Phi; when none
+///     decreases the merit, nu is raised, then `fallback_sweeps` Gauss-Seidel sweeps (the
+///     caller's `sweep`).
 /// It stops when max_k |Phi_k| <= tolerance, after `max_iterations` steps, or when the
 /// fallbacks stop making progress; it returns to the best iterate (smallest max_k |Phi_k|),
 /// so it is never worse than the iterate it starts from. Semismooth Newton on the SOC

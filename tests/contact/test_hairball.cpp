@@ -257,11 +257,10 @@ TEST_SUITE("slow") {
   TEST_CASE("hairball: the convergent contact solve holds V-21's step 22 (one group of 1600 contacts) where Gauss-Seidel stops above contact_tol") {
     // From the state before step 22 of V-21 with end-overlap contacts. Gauss-Seidel's 150
     // sweeps leave the big group at residuals up to 2.6e-4 m; Newton takes every group to
-    // contact_tol = 1e-8 m, after a damped phase of some 30-50 steps (8 % merit decrease per
-    // step) before the fast local convergence: 30 steps stop it at 4.1e-5 m (the guard), and
-    // the former default cap of 50 stopped it at 1.05e-5 m before the Levenberg-Marquardt step
-    // was reserved for steps that do not decrease the merit (measured on 2026-11-29,
-    // bench/results/rods/contact_newton_v21/).
+    // contact_tol = 1e-8 m, after a damped phase of some 45 steps (8 % merit decrease per
+    // step) before the fast local convergence (66 steps in the longest solve): the former
+    // default cap of 50 stopped it at 1.05e-5 m, and a cap of 30 (the guard) stops it too
+    // (measured on 2026-11-29, bench/results/rods/contact_newton_v21/).
     const auto run = [](std::vector<std::string> o) {
       o.insert(o.end(), {"contact.overlap_tol=0.01", "time.duration=0.8"});
       auto sim = make_simulator(load_scene(scene_path("hairball_250.json"), o));
