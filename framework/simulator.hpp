@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -116,7 +117,7 @@ class Simulator {
     const double dt = scene_.spec.time.dt;
     ++steps_;
     const Snapshot start = snapshot();
-    StepReport rep = advance(dt, scene_.spec.time.max_subdivisions);
+    StepReport rep = advance(dt, scene_.spec.time.max_subdivisions, &start);
     if (!rep.ok()) rollback(start);
     rep.step = steps_;
     rep.dt = dt;
@@ -234,14 +235,16 @@ class Simulator {
     if constexpr (SavesState<Linear>) linear_.restore(c, "linear.");
   }
 
-  // Advances by dt, as 2^k substeps when an attempt fails and `depth` allows it.
-  StepReport advance(double dt, int depth) {
+  // Advances by dt, as 2^k substeps when an attempt fails and `depth` allows it. `start`:
+  // a snapshot of the current state when the caller has one (else one is taken if needed).
+  StepReport advance(double dt, int depth, const Snapshot* start = nullptr) {
     if (depth == 0) return attempt(dt);
-    const Snapshot start = snapshot();  // the retry starts where the failed attempt did
+    std::optional<Snapshot> own;
+    if (!start) start = &own.emplace(snapshot());  // the retry starts where the failed attempt did
     StepReport first = attempt(dt);
     if (first.ok() || first.status == Status::invalid_input || first.status == Status::interrupted) return first;
-    rollback(start);
-    StepReport rep = advance(0.5 * dt, depth - 1);
+    rollback(*start);
+    StepReport rep = advance(0.5 * dt, depth - 1, start);  // the first half starts from the same state
     if (rep.ok()) rep.merge_substep(advance(0.5 * dt, depth - 1));
     rep.times += first.times;
     rep.discarded_newton_iterations += first.newton.iterations;
