@@ -44,11 +44,12 @@ int main(int argc, char** argv) {
   cmd_run->add_flag("--plain", plain, "plain progress lines (default when stderr is not a terminal)");
   cmd_run->add_flag("-q,--quiet", run.quiet, "no progress output");
   cmd_run->add_option("--checkpoint-every", run.checkpoint_every,
-                      "write the state to OUT/checkpoint.wckp every N frames and at the last (rod combinations; they also write "
-                      "it when interrupted, and OUT/failed_step.wckp, the state at the start of a failing step)");
+                      "write the state to OUT/checkpoint.wckp every N frames and at the last (also when interrupted), and "
+                      "OUT/failed_step.wckp, the state at the start of a failing step; every pre-built combination, rods and cloth");
   cmd_run->add_option("--resume", run.resume,
                       "continue from a checkpoint (.wckp) to the scene's end, bitwise as if never stopped; the scene and overrides "
-                      "may differ from the run that wrote it (e.g. another strategy) as long as the rods match");
+                      "may differ from the run that wrote it (e.g. another strategy) as long as the rods or the cloth vertices match; "
+                      "a preconditioner kept across steps is rebuilt, which the run warns about");
   cmd_run->footer(
       "Exit codes: 0 success; 2 invalid scene, parameters or checkpoint (nothing written); 3 a step failed "
       "(output up to the failure kept); 128+signal when interrupted.");
