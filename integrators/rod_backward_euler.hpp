@@ -43,6 +43,20 @@
 /// Levenberg-Marquardt damping or a trust region were not needed: they shorten the same
 /// straight steps and do not bend them. A short accepted step is not taken for convergence
 /// (the former test "s times the step below tolerance" could stop a stalled line search).
+/// The reference twist's branch follows the iterate. The model's energy
+/// takes each reference twist on the 2 pi branch nearest `frames.reference_twist`; left at
+/// the start of the step, that makes E_inc jump where the twist has turned by pi since then.
+/// At a hairpin (adjacent edges turned by nearly pi against each other) the transport between
+/// the two tangents is nearly singular and the reference twist turns fast: measured on a 1 um
+/// rod under ADONIS at 2 ms (the tension-free whip, step 152, 166 degrees between the held
+/// edge and the next), Newton stalled against that jump at |f| = 4.5e-15 with an 82 um step:
+/// E_inc rose by 6.1e-18 (the twist energy from 1.7e-17 to 1.5e-12) for every step length
+/// from 1 down to 2^-40 and the line search failed from both starts. After every accepted
+/// Newton step (`follow_twist`, default on) `frames.reference_twist` is set to the twist at the new iterate, so the branch
+/// is continuous along the Newton path (as the per-iteration frame updates of common DER
+/// codes), and the step's end transports the frames on that branch. Wherever the twist stays
+/// within pi of the step's start the branches, and so every result, are unchanged; a failed
+/// solve puts the start's back.
 /// What remains is the model's limit, not the solver's: the frames are transported from the
 /// start-of-step tangents, which is singular for an edge turning by pi within one step. On the
 /// whip without gravity at 20 rad/s and h = 100 ms (2 rad per step) an edge turns by 3.04 rad
@@ -82,6 +96,7 @@ class RodBackwardEuler {
     bool arc_step = true;           ///< line search along edge rotations (else along the straight Newton direction)
     bool follow_the_leader = true;  ///< also try the follow-the-leader projection of the guess, keep the lower E_inc
     bool retry_start = true;        ///< follow_the_leader: a DEL that fails from one start is solved again from the other
+    bool follow_twist = true;       ///< the reference twist's 2 pi branch follows the Newton iterate (else: the step's start)
     template <class V>
     void visit(V& v) {
       v.field("tolerance", tolerance, {Unit::none, Range::open(0, 1), "Newton stops when its step moves no vertex by more than this times the mean rest edge length"});
@@ -95,6 +110,11 @@ class RodBackwardEuler {
                "follow_the_leader: a DEL whose Newton fails (line search, iteration limit) from the start of lower E_inc is solved again "
                "from the other start (the guess, or its follow-the-leader projection) before the step fails; the report adds both "
                "attempts' iterations (false: it fails there)"});
+      v.field("follow_twist", follow_twist,
+              {Unit::none, Range::any(),
+               "the energy takes each reference twist on the 2 pi branch nearest the twist at the last accepted Newton iterate, so "
+               "E_inc stays continuous where a twist turns by more than pi within the step (a hairpin); false: nearest the step's "
+               "start, where E_inc jumps by 2 pi of twist"});
     }
   };
 
@@ -153,6 +173,7 @@ class RodBackwardEuler {
       if (b.fixed[i]) b.d[i] = b.target[i] - b.q[i];
     rep.tolerance = prm_.tolerance * b.mean_edge;
     const Eigen::VectorXd guess = b.d;
+    const auto anchor = twist_anchor(b);  // the branches at the step's start, put back when a solve fails
     Eigen::VectorXd leader;
     double E = potential(b, b.d, h);
     bool from_leader = false;
@@ -168,10 +189,14 @@ class RodBackwardEuler {
       return rep;
     }
     newton(b, h, E, rep);
-    if (rep.status == Status::success || !prm_.follow_the_leader || !prm_.retry_start) return rep;
+    if (rep.status == Status::success) return rep;
+    set_twist_anchor(b, anchor);
+    if (!prm_.follow_the_leader || !prm_.retry_start) return rep;
     // The other start. Measured on a 2 um rod under ADONIS at 5 ms (the tension-free whip,
     // step 61): from the follow-the-leader projection Newton ends in "line search failed ...
     // after 40 halvings" at |f| = 4.7e-14 with a 0.37 mm step; from h v the step converges.
+    // (That failure was the twist branch's jump: with follow_twist the first start converges
+    // as well; the retry stays for failures of other causes.)
     const Eigen::VectorXd& other = from_leader ? guess : leader;
     const double Eo = potential(b, other, h);
     if (!std::isfinite(Eo)) return rep;
@@ -183,6 +208,7 @@ class RodBackwardEuler {
     second.iterations = 0;
     newton(b, h, Eo, second);
     if (second.status != Status::success) {
+      set_twist_anchor(b, anchor);
       b.d = failed;  // the first failure, as before, with both attempts' work
       rep.iterations += second.iterations;
       rep.message += fmt::format("; from the {} as well: {}", from_leader ? "guess h v" : "follow-the-leader projection", second.message);
@@ -247,6 +273,7 @@ class RodBackwardEuler {
       }
       if (largest_move(dir) <= step_tol) {  // converged: the full (tiny) Newton step, below what E_inc can resolve
         b.d += dir;
+        follow_twist(b);
         rep.iterations = it + 1;
         residual(b, b.d, h, f);
         rep.final_residual = f.norm();
@@ -294,6 +321,7 @@ class RodBackwardEuler {
       if (at_resolution && (round_off || s < 1)) {
         if (trial == b.d) return stop_at_resolution(it);
         b.d = trial;
+        follow_twist(b);
         return stop_at_resolution(it + 1);
       }
       if (trial == b.d) {  // Armijo accepted a step that changes nothing, on a step that is not tiny
@@ -305,7 +333,8 @@ class RodBackwardEuler {
       }
       // A short accepted step is progress, not convergence: only the full Newton step decides.
       b.d = trial;
-      E = Et;
+      follow_twist(b);
+      E = potential(b, b.d, h);  // Et, unless the iterate's twist has turned by pi since the anchor
       rep.iterations = it + 1;
     }
     residual(b, b.d, h, f);
@@ -375,6 +404,26 @@ class RodBackwardEuler {
   }
 
  private:
+  /// The reference twists whose 2 pi branches the model's energy takes (none for a model
+  /// without them).
+  template <class Body>
+  static auto twist_anchor(const Body& b) {
+    if constexpr (requires { b.frames.reference_twist; }) return b.frames.reference_twist;
+    else return 0;
+  }
+  template <class Body, class A>
+  static void set_twist_anchor(Body& b, const A& anchor) {
+    if constexpr (requires { b.frames.reference_twist; }) b.frames.reference_twist = anchor;
+  }
+  /// Moves the branches to the iterate q + d: frames.reference_twist becomes the twist there
+  /// (each on the branch nearest its old value), tangents and directors stay the start's.
+  template <class Body>
+  void follow_twist(Body& b) const {
+    if (!prm_.follow_twist) return;
+    if constexpr (requires { b.frames.reference_twist; b.model.transport(b.frames, b.q); })
+      b.frames.reference_twist = b.model.transport(b.frames, b.q + b.d).reference_twist;
+  }
+
   /// Largest vertex displacement [m] of a DoF vector (the x entries 4i..4i+2).
   static double largest_move(const Eigen::VectorXd& dq) {
     double m = 0;

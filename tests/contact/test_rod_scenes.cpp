@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -736,10 +737,13 @@ TEST_SUITE("rods") {
     // cells, bench/results/rods/figure_9_2_edge/), from the state before step 61. From the
     // follow-the-leader projection of the guess (the start of lower E_inc) the DEL's Newton
     // ends in "line search failed ... after 40 halvings" at |f| = 4.7e-14 with a 0.37 mm
-    // step; from h v it converges. integrator.retry_start = false keeps the failure.
-    const auto whip = [](const char* retry) {
+    // step; from h v it converges. integrator.retry_start = false keeps the failure. Its cause
+    // was the reference twist's branch (the hairpin case below): with integrator.follow_twist
+    // (the default) the first start converges too, so the retry is shown with it off.
+    const auto whip = [](const char* retry, const char* follow = "false") {
       auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=2e-6", "time.dt=0.005", "time.duration=0.4",
-                            "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.retry_start=") + retry});
+                            "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.retry_start=") + retry,
+                            std::string("integrator.follow_twist=") + follow});
       support::resume_from_fixture(*sim, "whip_edge_2um_adonis_5ms_after_step60.wckp");
       return sim;
     };
@@ -747,6 +751,9 @@ TEST_SUITE("rods") {
     MESSAGE("retry_start = false, step " << failed.step << ": " << failed.message);
     CHECK(failed.step == 61);
     CHECK(failed.message.find("line search failed") != std::string::npos);  // the guard
+    const StepReport followed = whip("false", "true")->step();
+    MESSAGE("retry_start = false, follow_twist = true, step " << followed.step << ": " << followed.newton.iterations << " DEL Newton iterations");
+    CHECK(followed.ok());
     auto on = whip("true");
     int deepest = 0;
     double strain = 0;
@@ -761,5 +768,41 @@ TEST_SUITE("rods") {
     CHECK(on->state().t == doctest::Approx(0.4));
     CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
     CHECK(deepest == 0);
+  }
+  TEST_CASE("rods: the rod DEL keeps the reference twist continuous through a hairpin (replayed step 152)") {
+    // scenes/whip_edge.json with a 1 um rod under ADONIS at 2 ms, from the state before step
+    // 152 (bench/results/rods/figure_9_2_edge/twist/). The held edge and the next one stand at
+    // 166 degrees; there the reference twist turns by pi within the step, and with its branch
+    // left at the step's start E_inc jumps by a 2 pi twist (from 1.7e-17 to 1.5e-12 J of twist
+    // energy) for every step length Newton tries: the line search fails from both starts.
+    const auto whip = [](const char* follow) {
+      auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=1e-6", "time.dt=0.002", "time.duration=0.5",
+                            "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.follow_twist=") + follow});
+      support::resume_from_fixture(*sim, "whip_edge_1um_adonis_2ms_after_step151.wckp");
+      return sim;
+    };
+    const StepReport failed = whip("false")->step();
+    MESSAGE("follow_twist = false, step " << failed.step << ": " << failed.message);
+    CHECK(failed.step == 152);
+    CHECK(failed.message.find("line search failed") != std::string::npos);  // the guard
+    // The energy of one stencil's twist off by 2 pi: k_t / (2 lbar) (2 pi)^2, k_t = G pi r^4 / 2.
+    const double r = 1e-6, G = 3.4e8, lbar = 0.2 / 29;
+    const double wrap = G * std::numbers::pi * std::pow(r, 4) / 2 / (2 * lbar) * 4 * std::numbers::pi * std::numbers::pi;
+    auto on = whip("true");
+    double twist = 0, strain = 0;
+    int steps = 0;
+    for (; on->state().t < 0.5 - 1e-9; ++steps) {
+      const StepReport k = on->step();
+      REQUIRE_MESSAGE(k.ok(), k.message);
+      for (const auto& [name, e] : k.energy.terms)
+        if (name == "twist") twist = std::max(twist, e);
+      strain = std::max(strain, k.contact.max_stretch);
+    }
+    MESSAGE("follow_twist = true: " << steps << " steps to t = 0.5 s, largest twist energy " << twist << " J (one 2 pi wrap: " << wrap
+                                    << " J), largest strain " << strain);
+    CHECK(steps >= 99);
+    CHECK(twist > 0);
+    CHECK(twist < 1e-3 * wrap);  // no twist created or released by a branch jump
+    CHECK(strain <= 0.0101);     // ADONIS's stretch_tol
   }
 }

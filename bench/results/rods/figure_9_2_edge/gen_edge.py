@@ -19,4 +19,5 @@ scene = {
   "contact": {"stretch_tol": 0.01, "gs_max": 150},
   "time": {"dt": 0.001, "duration": T, "frame_rate": 50}
 }
-json.dump(scene, open(f"edge_v{sys.argv[1]}.json", "w"), indent=1)
+name = f"edge_v{sys.argv[1]}.json" if T == 1.0 else f"edge_v{sys.argv[1]}_{sys.argv[2]}s.json"
+json.dump(scene, open(name, "w"), indent=1)
