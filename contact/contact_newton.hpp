@@ -75,6 +75,10 @@ struct NewtonContactOptions {
   int max_iterations = 50;   ///< Newton and fallback steps
   int fallback_sweeps = 10;  ///< Gauss-Seidel sweeps of the last fallback
   int dense_limit = 1500;    ///< dense LU up to this many unknowns (3 per contact left in the system), sparse LU beyond
+  /// Sparse systems (beyond dense_limit): the Levenberg-Marquardt step competes with the
+  /// Newton and stick steps only when neither decreases the merit (false: whenever they
+  /// fall short of a quarter of it, as in the dense path)
+  bool sparse_lm_only_when_stuck = true;
 };
 
 /// What a Newton contact solve did.
