@@ -769,6 +769,38 @@ TEST_SUITE("rods") {
     CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
     CHECK(deepest == 0);
   }
+  TEST_CASE("rods: the rod DEL extends a full step along negative curvature (replayed step 143 of the 5 s edge whip)") {
+    // scenes/whip_edge_5s.json with the whip's 60 um rod under ADONIS at 30 ms, from the
+    // state before step 143 (bench/results/rods/figure_9_2_edge/expand/). The exact Hessian
+    // gives no descent there and every full step of the PSD-projected one lowers E_inc by
+    // about f.dir (a convex E_inc would fall by at most half of it) and moves the rod 3.4e-7 m
+    // along the same valley: 200 iterations from both starts at |f| = 5e-13.
+    const auto whip = [](const char* expand) {
+      auto sim = make_simulator(load_scene(support::source_path("scenes/whip_edge_5s.json"),
+                                           {"combo=rods_adonis", "rods.0.material.radius=6e-5", "time.dt=0.03", "time.frame_rate=33.333333333333333",
+                                            "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.expand=") + expand}));
+      support::resume_from_fixture(*sim, "whip_edge_5s_60um_adonis_30ms_after_step142.wckp");
+      return sim;
+    };
+    const StepReport failed = whip("false")->step();
+    MESSAGE("expand = false, step " << failed.step << ": " << failed.message);
+    CHECK(failed.step == 143);
+    CHECK(failed.message.find("did not converge in 200 Newton iterations") != std::string::npos);  // the guard
+    auto on = whip("true");
+    int steps = 0, most = 0;
+    double strain = 0;
+    for (; on->state().t < 5 - 1e-9; ++steps) {
+      const StepReport k = on->step();
+      REQUIRE_MESSAGE(k.ok(), k.message);
+      if (steps == 0) MESSAGE("expand = true, step " << k.step << ": " << k.newton.iterations << " DEL Newton iterations");
+      most = std::max(most, k.newton.iterations);
+      strain = std::max(strain, k.contact.max_stretch);
+    }
+    MESSAGE(steps << " steps to t = 5 s, at most " << most << " DEL Newton iterations, largest strain " << strain);
+    CHECK(steps == 25);  // steps 143-167
+    CHECK(most < 200);
+    CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
+  }
   TEST_CASE("rods: the rod DEL keeps the reference twist continuous through a hairpin (replayed step 152)") {
     // scenes/whip_edge.json with a 1 um rod under ADONIS at 2 ms, from the state before step
     // 152 (bench/results/rods/figure_9_2_edge/twist/). The held edge and the next one stand at
