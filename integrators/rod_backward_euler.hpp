@@ -43,20 +43,24 @@
 /// Levenberg-Marquardt damping or a trust region were not needed: they shorten the same
 /// straight steps and do not bend them. A short accepted step is not taken for convergence
 /// (the former test "s times the step below tolerance" could stop a stalled line search).
-/// The reference twist's branch follows the iterate. The model's energy
-/// takes each reference twist on the 2 pi branch nearest `frames.reference_twist`; left at
-/// the start of the step, that makes E_inc jump where the twist has turned by pi since then.
+/// The reference twist's branch follows the iterate (`follow_twist`, default on). The model's
+/// energy takes each reference twist on the 2 pi branch nearest `frames.reference_twist`;
+/// left at the start of the step, that makes E_inc jump where the twist has turned by pi
+/// since then.
 /// At a hairpin (adjacent edges turned by nearly pi against each other) the transport between
 /// the two tangents is nearly singular and the reference twist turns fast: measured on a 1 um
 /// rod under ADONIS at 2 ms (the tension-free whip, step 152, 166 degrees between the held
 /// edge and the next), Newton stalled against that jump at |f| = 4.5e-15 with an 82 um step:
 /// E_inc rose by 6.1e-18 (the twist energy from 1.7e-17 to 1.5e-12) for every step length
 /// from 1 down to 2^-40 and the line search failed from both starts. After every accepted
-/// Newton step (`follow_twist`, default on) `frames.reference_twist` is set to the twist at the new iterate, so the branch
-/// is continuous along the Newton path (as the per-iteration frame updates of common DER
-/// codes), and the step's end transports the frames on that branch. Wherever the twist stays
-/// within pi of the step's start the branches, and so every result, are unchanged; a failed
-/// solve puts the start's back.
+/// Newton step `frames.reference_twist` is set to the twist at the new iterate, so the
+/// branch is continuous along the Newton path (as the per-iteration frame updates of common
+/// DER codes), and the step's end transports the frames on that branch. Wherever the twist
+/// stays within pi of the step's start the branches, and so every result, are unchanged; a
+/// failed solve puts the start's back.
+/// A full step that lowers E_inc by more than the linear prediction f.dir (negative curvature
+/// along it, which the PSD-projected Hessian hides) is extended by doublings while E_inc
+/// falls (`expand`, default on; measured case at the line search below).
 /// What remains is the model's limit, not the solver's: the frames are transported from the
 /// start-of-step tangents, which is singular for an edge turning by pi within one step. On the
 /// whip without gravity at 20 rad/s and h = 100 ms (2 rad per step) an edge turns by 3.04 rad
@@ -358,7 +362,7 @@ class RodBackwardEuler {
       // A short accepted step is progress, not convergence: only the full Newton step decides.
       b.d = trial;
       follow_twist(b);
-      E = potential(b, b.d, h);  // Et, unless the iterate's twist has turned by pi since the anchor
+      E = prm_.follow_twist ? potential(b, b.d, h) : Et;  // Et, unless the iterate's twist has turned by pi since the anchor
       rep.iterations = it + 1;
     }
     residual(b, b.d, h, f);
