@@ -805,6 +805,31 @@ TEST_SUITE("rods") {
     CHECK(most < 200);
     CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
   }
+  TEST_CASE("rods: ADONIS keeps the less stretched of two capped results (replayed step 163 of the 5 s edge whip)") {
+    // scenes/whip_edge_5s.json with a 1 um rod under ADONIS at 30 ms, from the state after
+    // step 162 (bench/results/rods/figure_9_2_edge/expand/). In step 163 the one group's exact
+    // iteration runs away to newton_max, and so does its projected restart; the exact result,
+    // which used to be kept, left an edge stretched 5.4e70 in a step reported as a success.
+    auto sim = make_simulator(load_scene(support::source_path("scenes/whip_edge_5s.json"),
+                                         {"combo=rods_adonis", "rods.0.material.radius=1e-6", "time.dt=0.03", "time.frame_rate=33.333333333333333",
+                                          "contact.redetections=20", "integrator.max_iterations=200"}));
+    support::resume_from_fixture(*sim, "whip_edge_5s_1um_adonis_30ms_after_step162.wckp");
+    const StepReport r = sim->step();
+    REQUIRE_MESSAGE(r.ok(), r.message);
+    MESSAGE("step " << r.step << ": " << r.contact.capped_groups << " capped group(s), " << r.contact.restarted_groups
+                    << " restarted, largest strain " << r.contact.max_stretch);
+    CHECK(r.step == 163);
+    CHECK(r.contact.capped_groups == 1);     // the exact iteration ran away (the case)
+    CHECK(r.contact.restarted_groups == 1);  // the projected result was kept
+    CHECK(r.contact.max_stretch < 0.02);
+    double strain = 0;
+    while (sim->state().t < 5 - 1e-9) {
+      const StepReport k = sim->step();
+      REQUIRE_MESSAGE(k.ok(), k.message);
+      strain = std::max(strain, k.contact.max_stretch);
+    }
+    CHECK(strain < 0.02);
+  }
   TEST_CASE("rods: the rod DEL keeps the reference twist continuous through a hairpin (replayed step 152)") {
     // scenes/whip_edge.json with a 1 um rod under ADONIS at 2 ms, from the state before step
     // 152 (bench/results/rods/figure_9_2_edge/twist/). The held edge and the next one stand at
