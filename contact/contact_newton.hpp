@@ -28,9 +28,10 @@
 ///     the load split between them non-unique), two steps compete and the lowest merit wins:
 ///     the stick step (every pressed contact sticks: one linear system u_k + (W delta)_k = 0
 ///     with a 1e-10 s diagonal, which keeps the split of exact duplicates) and a lightly
-///     regularised Levenberg-Marquardt step (J^T J + nu I) delta = -J^T Phi; when none
-///     decreases the merit, nu is raised, then `fallback_sweeps` Gauss-Seidel sweeps (the
-///     caller's `sweep`).
+///     regularised Levenberg-Marquardt step (J^T J + nu I) delta = -J^T Phi (in the sparse
+///     path only when neither the Newton nor the stick step decreases the merit:
+///     `sparse_lm_only_when_stuck`); when none decreases the merit, nu is raised, then
+///     `fallback_sweeps` Gauss-Seidel sweeps (the caller's `sweep`).
 /// It stops when max_k |Phi_k| <= tolerance, after `max_iterations` steps, or when the
 /// fallbacks stop making progress; it returns to the best iterate (smallest max_k |Phi_k|),
 /// so it is never worse than the iterate it starts from. Semismooth Newton on the SOC

@@ -644,15 +644,18 @@ class RodResponse {
         for (int r : rods) most = std::max(most, sys.stretch(r, sys.body(r).d));
         return most;
       };
-      const bool compare = again.status == Status::success;
-      const double projected = compare ? largest_stretch() : 0;
-      const Snapshot projected_end = compare ? save() : Snapshot{};
-      restore(exact_end);
-      if (compare && projected < largest_stretch()) {
-        restore(projected_end);
-        again.restarted = true;
-        again.add_work(st);
-        return again;
+      if (again.status == Status::success) {
+        const double projected = largest_stretch();
+        const Snapshot projected_end = save();
+        restore(exact_end);
+        if (projected < largest_stretch()) {
+          restore(projected_end);
+          again.restarted = true;
+          again.add_work(st);
+          return again;
+        }
+      } else {
+        restore(exact_end);
       }
       st.add_work(again);
       return st;
