@@ -42,7 +42,7 @@ struct RodBody {
   Eigen::VectorXd target;         ///< end-of-step values of the held DoFs (other entries unused)
   Eigen::VectorXd d;              ///< displacement of the step (DEL, then corrected by contact)
   std::vector<unsigned char> fixed;  ///< per DoF: 1 when held by the scripted root
-  Frames frames;                  ///< reference frames at q
+  Frames frames;                  ///< reference frames at q (the DEL may move them to its iterate within a step)
   BandMatrix K;                   ///< M + h^2 H at the last linearisation
   Linear lu;                      ///< its factorisation
   double mean_edge = 0;           ///< [m] mean rest edge length
@@ -140,11 +140,20 @@ class RodSimulator {
     const double t1 = centre_.t + dt_;
     const int R = num_rods();
     std::vector<NewtonReport> del(R);
+    start_frames_.resize(R);
+    // A failed step leaves q, v, frames and t at the step's start (the runner's failed_step
+    // checkpoint is the state then); the DEL may move a rod's frames within the step
+    // (integrator.follow_twist, follow_frames), so they are put back on every failure below.
+    const auto fail = [&](const char* stage, Status status, std::string message) -> StepReport& {
+      for (int r = 0; r < R; ++r) bodies_[r].frames = start_frames_[r];
+      return rep.fail(stage, status, std::move(message), centre_.t);
+    };
     {
       ScopedTimer timer(rep.times, Stage::energy);  // the unconstrained solves (energy, Hessian and banded solves)
 #pragma omp parallel for schedule(dynamic, 4) if (R > 1)
       for (int r = 0; r < R; ++r) {
         Body& b = bodies_[r];
+        start_frames_[r] = b.frames;
         held_targets(r, t1);
         if constexpr (requires { b.model.set_viscous_rest(b.q, b.frames, dt_); }) b.model.set_viscous_rest(b.q, b.frames, dt_);
         b.d = dt_ * b.v;  // initial guess: constant velocity
@@ -155,7 +164,7 @@ class RodSimulator {
       rep.newton.iterations = std::max(rep.newton.iterations, del[r].iterations);
       rep.newton.final_residual = std::max(rep.newton.final_residual, del[r].final_residual);
       if (del[r].status != Status::success)
-        return rep.fail("integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message), centre_.t);
+        return fail("integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message));
     }
     rep.newton.method = del.empty() ? "" : del[0].method;
     rep.newton.stop_reason = "every rod converged (iterations: the largest over the rods)";
@@ -163,14 +172,14 @@ class RodSimulator {
       ScopedTimer timer(rep.times, Stage::contact);
       rep.contact = contact_.resolve(*this);
     }
-    if (rep.contact.status != Status::success) return rep.fail("contact response", rep.contact.status, rep.contact.message, centre_.t);
+    if (rep.contact.status != Status::success) return fail("contact response", rep.contact.status, rep.contact.message);
     double stretch = 0;
     for (int r = 0; r < R; ++r) {
       Body& b = bodies_[r];
-      if (!b.d.allFinite()) return rep.fail("contact response", Status::numerical_issue, fmt::format("rod {}: non-finite displacement", r), centre_.t);
+      if (!b.d.allFinite()) return fail("contact response", Status::numerical_issue, fmt::format("rod {}: non-finite displacement", r));
       if (!b.model.admissible(b.q + b.d, b.frames))
-        return rep.fail("contact response", Status::numerical_issue,
-                    fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r), centre_.t);
+        return fail("contact response", Status::numerical_issue,
+                    fmt::format("rod {}: the step leaves the model's domain (a zero-length, reversed or folded edge)", r));
     }
 #pragma omp parallel for schedule(dynamic, 4) reduction(max : stretch) if (R > 1)
     for (int r = 0; r < R; ++r) {
@@ -351,6 +360,7 @@ class RodSimulator {
   Integ integrator_;
   Contact contact_;
   std::vector<Body> bodies_;
+  std::vector<typename Body::Frames> start_frames_;  ///< each rod's frames at the start of the current step
   State centre_;
   double dt_ = 0;
   int steps_ = 0;

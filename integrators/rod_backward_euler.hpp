@@ -61,14 +61,17 @@
 /// A full step that lowers E_inc by more than the linear prediction f.dir (negative curvature
 /// along it, which the PSD-projected Hessian hides) is extended by doublings while E_inc
 /// falls (`expand`, default on; measured case at the line search below).
-/// What remains is the model's limit, not the solver's: the frames are transported from the
-/// start-of-step tangents, which is singular for an edge turning by pi within one step. On the
-/// whip without gravity at 20 rad/s and h = 100 ms (2 rad per step) an edge turns by 3.04 rad
-/// at step 7 and the line search stalls at |f| = 1.0e-6; that step is reported as failed.
+/// The energy transports the reference directors from the frames' tangents, dividing by
+/// 1 + a.b: singular for an edge that turns by pi within the step. Once an edge of the
+/// iterate points more than 90 degrees away from its frame's tangent, the frames are
+/// transported to the iterate and the energy transports from there on (`follow_frames`,
+/// default on; measured case at `follow_frames` below). The simulator puts the step's start
+/// frames back when the step fails.
 ///
 /// A `Body` provides: `model` (energy(q, frames), add_gradient, add_hessian, admissible),
 /// `q`, `v`, `mass`, `fext` (n-vectors), `fixed` (n flags), `target` (n: end-of-step values
-/// of the held DoFs), `frames` (the frames at q), `d` (the displacement: initial guess in,
+/// of the held DoFs), `frames` (the frames at q; `follow_twist` and `follow_frames` move them to
+/// the iterate, a failed solve puts them back), `d` (the displacement: initial guess in,
 /// solution out), `K` (a BandMatrix scratch), `lu` (a linear solver with
 /// factorize(BandMatrix) -> Status and solve(Eigen::Ref<MatrixXd>)), `mean_edge`; DoFs
 /// interleaved as in models/discrete_elastic_rod.hpp (x_i = 4i..4i+2, theta_j = 4j+3).
@@ -102,6 +105,7 @@ class RodBackwardEuler {
     bool retry_start = true;        ///< follow_the_leader: a DEL that fails from one start is solved again from the other
     bool follow_twist = true;       ///< the reference twist's 2 pi branch follows the Newton iterate (else: the step's start)
     bool expand = true;             ///< a full step along negative curvature is extended by doublings while E_inc falls
+    bool follow_frames = true;      ///< the frames are re-anchored at the iterate once an edge has turned by more than 90 degrees from them
     template <class V>
     void visit(V& v) {
       v.field("tolerance", tolerance, {Unit::none, Range::open(0, 1), "Newton stops when its step moves no vertex by more than this times the mean rest edge length"});
@@ -124,6 +128,12 @@ class RodBackwardEuler {
               {Unit::none, Range::any(),
                "when the full Newton step lowers E_inc by more than the linear prediction f.dir (negative curvature along it, which "
                "the PSD-projected Hessian hides), the step is doubled while E_inc keeps falling (false: the full step is taken)"});
+      v.field("follow_frames", follow_frames,
+              {Unit::none, Range::any(),
+               "once an edge of the Newton iterate (or of the initial guess) points more than 90 degrees away from its frame's "
+               "tangent, the reference frames are transported to the iterate and the energy transports from there on, which stays "
+               "well conditioned where an edge turns by nearly pi within the step (false: always from the step's start, whose "
+               "transport is singular there)"});
     }
   };
 
@@ -182,7 +192,7 @@ class RodBackwardEuler {
       if (b.fixed[i]) b.d[i] = b.target[i] - b.q[i];
     rep.tolerance = prm_.tolerance * b.mean_edge;
     const Eigen::VectorXd guess = b.d;
-    const auto anchor = twist_anchor(b);  // the branches at the step's start, put back when a solve fails
+    const auto start_frames = frames_of(b);  // the frames (and twist branches) at the step's start, put back when a solve fails
     Eigen::VectorXd leader;
     double E = potential(b, b.d, h);
     bool from_leader = false;
@@ -197,9 +207,10 @@ class RodBackwardEuler {
       rep.message = "the initial guess is outside the rod model's domain (zero-length or reversed edge)";
       return rep;
     }
+    if (follow_frames(b)) E = potential(b, b.d, h);
     newton(b, h, E, rep);
     if (rep.status == Status::success) return rep;
-    set_twist_anchor(b, anchor);
+    set_frames(b, start_frames);
     if (!prm_.follow_the_leader || !prm_.retry_start) return rep;
     // The other start. Measured on a 2 um rod under ADONIS at 5 ms (the tension-free whip,
     // step 61): from the follow-the-leader projection Newton ends in "line search failed ...
@@ -207,17 +218,18 @@ class RodBackwardEuler {
     // (That failure was the twist branch's jump: with follow_twist the first start converges
     // as well; the retry stays for failures of other causes.)
     const Eigen::VectorXd& other = from_leader ? guess : leader;
-    const double Eo = potential(b, other, h);
+    double Eo = potential(b, other, h);
     if (!std::isfinite(Eo)) return rep;
     const Eigen::VectorXd failed = b.d;
     b.d = other;
+    if (follow_frames(b)) Eo = potential(b, b.d, h);
     NewtonReport second = rep;
     second.status = Status::success;
     second.message.clear();
     second.iterations = 0;
     newton(b, h, Eo, second);
     if (second.status != Status::success) {
-      set_twist_anchor(b, anchor);
+      set_frames(b, start_frames);
       b.d = failed;  // the first failure, as before, with both attempts' work
       rep.iterations += second.iterations;
       rep.message += fmt::format("; from the {} as well: {}", from_leader ? "guess h v" : "follow-the-leader projection", second.message);
@@ -362,7 +374,8 @@ class RodBackwardEuler {
       // A short accepted step is progress, not convergence: only the full Newton step decides.
       b.d = trial;
       follow_twist(b);
-      E = prm_.follow_twist ? potential(b, b.d, h) : Et;  // Et, unless the iterate's twist has turned by pi since the anchor
+      const bool moved = follow_frames(b);
+      E = prm_.follow_twist || moved ? potential(b, b.d, h) : Et;  // Et, unless the iterate's twist or frames moved the energy's anchor
       rep.iterations = it + 1;
     }
     residual(b, b.d, h, f);
@@ -432,17 +445,6 @@ class RodBackwardEuler {
   }
 
  private:
-  /// The reference twists whose 2 pi branches the model's energy takes (none for a model
-  /// without them).
-  template <class Body>
-  static auto twist_anchor(const Body& b) {
-    if constexpr (requires { b.frames.reference_twist; }) return b.frames.reference_twist;
-    else return 0;
-  }
-  template <class Body, class A>
-  static void set_twist_anchor(Body& b, const A& anchor) {
-    if constexpr (requires { b.frames.reference_twist; }) b.frames.reference_twist = anchor;
-  }
   /// Moves the branches to the iterate q + d: frames.reference_twist becomes the twist there
   /// (each on the branch nearest its old value), tangents and directors stay the start's.
   template <class Body>
@@ -450,6 +452,44 @@ class RodBackwardEuler {
     if (!prm_.follow_twist) return;
     if constexpr (requires { b.frames.reference_twist; b.model.transport(b.frames, b.q); })
       b.frames.reference_twist = b.model.transport(b.frames, b.q + b.d).reference_twist;
+  }
+
+  /// The body's frames (a copy to restore), or 0 for a model without them.
+  template <class Body>
+  static auto frames_of(const Body& b) {
+    if constexpr (requires { b.frames.tangent; }) return b.frames;
+    else return 0;
+  }
+  template <class Body, class F>
+  static void set_frames(Body& b, const F& frames) {
+    if constexpr (requires { b.frames.tangent; }) b.frames = frames;
+  }
+  /// Re-anchors the frames at the iterate q + d (transported there, twist branches included)
+  /// when an edge of the iterate points more than 90 degrees away from its frame's tangent;
+  /// returns whether it did. The transport P_{a -> b} divides by 1 + a.b: measured on a 2 um
+  /// rod under ADONIS at 100 ms (the tension-free whip over 5 s, step 33), edges 2-5 turned
+  /// by 179.3 to 179.9996 degrees within the step (1 + a.b down to 2.8e-11), E_inc varied by
+  /// +-3e-21 (5e-10 of its value) between points 3e-15 m apart, and the line search failed
+  /// at |f| = 8.7e-11 with a 7.2e-8 m step from both starts. Transported from an anchor that
+  /// an edge has turned less than 90 degrees from, the division is by more than 1. The energy
+  /// is the same function of q at the anchor itself; elsewhere its directors differ from the
+  /// start's transport by the holonomy of the detour, a change of reference frame that the
+  /// twist angles absorb (the step's end transports from the same anchor).
+  template <class Body>
+  bool follow_frames(Body& b) const {
+    if (!prm_.follow_frames) return false;
+    if constexpr (requires { b.frames.tangent; b.model.transport(b.frames, b.q); }) {
+      const int edges = static_cast<int>(b.frames.tangent.size());
+      for (int j = 0; j < edges; ++j) {
+        const Eigen::Vector3d e = b.q.template segment<3>(4 * j + 4) + b.d.template segment<3>(4 * j + 4) - b.q.template segment<3>(4 * j) -
+                                  b.d.template segment<3>(4 * j);
+        if (e.dot(b.frames.tangent[j]) < 0) {
+          b.frames = b.model.transport(b.frames, b.q + b.d);
+          return true;
+        }
+      }
+    }
+    return false;
   }
 
   /// Largest vertex displacement [m] of a DoF vector (the x entries 4i..4i+2).

@@ -743,11 +743,13 @@ TEST_SUITE("rods") {
     // ends in "line search failed ... after 40 halvings" at |f| = 4.7e-14 with a 0.37 mm
     // step; from h v it converges. integrator.retry_start = false keeps the failure. Its cause
     // was the reference twist's branch (the hairpin case below): with integrator.follow_twist
-    // (the default) the first start converges too, so the retry is shown with it off.
-    const auto whip = [](const char* retry, const char* follow = "false") {
+    // (the default) the first start converges too, and so it does with integrator.follow_frames
+    // (the default, which moves the twist branches with the frames), so the retry is shown
+    // with both off.
+    const auto whip = [](const char* retry, const char* follow = "false", const char* frames = "false") {
       auto sim = edge_whip({"combo=rods_adonis", "rods.0.material.radius=2e-6", "time.dt=0.005", "time.duration=0.4",
                             "contact.redetections=20", "integrator.max_iterations=200", std::string("integrator.retry_start=") + retry,
-                            std::string("integrator.follow_twist=") + follow});
+                            std::string("integrator.follow_twist=") + follow, std::string("integrator.follow_frames=") + frames});
       support::resume_from_fixture(*sim, "whip_edge_2um_adonis_5ms_after_step60.wckp");
       return sim;
     };
@@ -758,6 +760,9 @@ TEST_SUITE("rods") {
     const StepReport followed = whip("false", "true")->step();
     MESSAGE("retry_start = false, follow_twist = true, step " << followed.step << ": " << followed.newton.iterations << " DEL Newton iterations");
     CHECK(followed.ok());
+    const StepReport framed = whip("false", "false", "true")->step();
+    MESSAGE("retry_start = false, follow_frames = true, step " << framed.step << ": " << framed.newton.iterations << " DEL Newton iterations");
+    CHECK(framed.ok());
     auto on = whip("true");
     int deepest = 0;
     double strain = 0;
@@ -803,6 +808,52 @@ TEST_SUITE("rods") {
     MESSAGE(steps << " steps to t = 5 s, at most " << most << " DEL Newton iterations, largest strain " << strain);
     CHECK(steps == 25);  // steps 143-167
     CHECK(most < 200);
+    CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
+  }
+  TEST_CASE("rods: the rod DEL transports the frames from its iterate when edges turn by nearly pi in one step (replayed step 33)") {
+    // scenes/whip_edge_5s.json with a 2 um rod under ADONIS at 100 ms, from the state before
+    // step 33 (bench/results/rods/figure_9_2_edge/follow_frames/). The handle reverses within
+    // the step and edges 2-5 turn by 179.3 to 179.9996 degrees; the transport from the
+    // step's start divides by 1 + a.b down to 2.8e-11, E_inc varies by 5e-10 of its value
+    // between points 3e-15 m apart, and the line search fails from both starts.
+    const auto whip = [](const char* follow, const char* redetections = "20") {
+      auto sim = make_simulator(load_scene(support::source_path("scenes/whip_edge_5s.json"),
+                                           {"combo=rods_adonis", "rods.0.material.radius=2e-6", "time.dt=0.1", "time.frame_rate=10",
+                                            std::string("contact.redetections=") + redetections, "integrator.max_iterations=200",
+                                            std::string("integrator.follow_frames=") + follow}));
+      support::resume_from_fixture(*sim, "whip_edge_5s_2um_adonis_100ms_after_step32.wckp");
+      return sim;
+    };
+    auto off = whip("false");
+    const Checkpoint before = off->checkpoint();
+    const StepReport failed = off->step();
+    MESSAGE("follow_frames = false, step " << failed.step << ": " << failed.message);
+    CHECK(failed.step == 33);
+    CHECK(failed.message.find("line search failed") != std::string::npos);  // the guard
+    // A failed step leaves the frames at the step's start (the failed_step checkpoint), also
+    // when the contact stage fails after a DEL that moved them: with one re-detection round
+    // step 34's contact response does not settle.
+    CHECK(off->checkpoint().arrays == before.arrays);
+    auto short_rounds = whip("true", "1");
+    REQUIRE(short_rounds->step().ok());
+    const Checkpoint before_34 = short_rounds->checkpoint();
+    const StepReport contact_failed = short_rounds->step();
+    CHECK(contact_failed.step == 34);
+    CHECK(contact_failed.failed_stage == "contact response");
+    CHECK(short_rounds->checkpoint().arrays == before_34.arrays);
+    auto on = whip("true");
+    int steps = 0, most = 0;
+    double strain = 0;
+    for (; on->state().t < 5 - 1e-9; ++steps) {
+      const StepReport k = on->step();
+      REQUIRE_MESSAGE(k.ok(), k.message);
+      if (steps == 0) MESSAGE("follow_frames = true, step " << k.step << ": " << k.newton.iterations << " DEL Newton iterations");
+      most = std::max(most, k.newton.iterations);
+      strain = std::max(strain, k.contact.max_stretch);
+    }
+    MESSAGE(steps << " steps to t = 5 s, at most " << most << " DEL Newton iterations, largest strain " << strain);
+    CHECK(steps == 18);  // steps 33-50
+    CHECK(most < 50);
     CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
   }
   TEST_CASE("rods: ADONIS keeps the less stretched of two capped results (replayed step 163 of the 5 s edge whip)") {
