@@ -63,7 +63,7 @@
 /// falls (`expand`, default on; measured case at the line search below).
 /// The energy transports the reference directors from the frames' tangents, dividing by
 /// 1 + a.b: singular for an edge that turns by pi within the step. Once an edge of the
-/// iterate points more than 90 degrees away from its frame's tangent, the frames are
+/// iterate points more than 170 degrees away from its frame's tangent, the frames are
 /// transported to the iterate and the energy transports from there on (`follow_frames`,
 /// default on; measured case at `follow_frames` below). The simulator puts the step's start
 /// frames back when the step fails.
@@ -105,7 +105,7 @@ class RodBackwardEuler {
     bool retry_start = true;        ///< follow_the_leader: a DEL that fails from one start is solved again from the other
     bool follow_twist = true;       ///< the reference twist's 2 pi branch follows the Newton iterate (else: the step's start)
     bool expand = true;             ///< a full step along negative curvature is extended by doublings while E_inc falls
-    bool follow_frames = true;      ///< the frames are re-anchored at the iterate once an edge has turned by more than 90 degrees from them
+    bool follow_frames = true;      ///< the frames are re-anchored at the iterate once an edge has turned by more than 170 degrees from them
     template <class V>
     void visit(V& v) {
       v.field("tolerance", tolerance, {Unit::none, Range::open(0, 1), "Newton stops when its step moves no vertex by more than this times the mean rest edge length"});
@@ -130,7 +130,7 @@ class RodBackwardEuler {
                "the PSD-projected Hessian hides), the step is doubled while E_inc keeps falling (false: the full step is taken)"});
       v.field("follow_frames", follow_frames,
               {Unit::none, Range::any(),
-               "once an edge of the Newton iterate (or of the initial guess) points more than 90 degrees away from its frame's "
+               "once an edge of the Newton iterate (or of the initial guess) points more than 170 degrees away from its frame's "
                "tangent, the reference frames are transported to the iterate and the energy transports from there on, which stays "
                "well conditioned where an edge turns by nearly pi within the step (false: always from the step's start, whose "
                "transport is singular there)"});
@@ -465,16 +465,21 @@ class RodBackwardEuler {
     if constexpr (requires { b.frames.tangent; }) b.frames = frames;
   }
   /// Re-anchors the frames at the iterate q + d (transported there, twist branches included)
-  /// when an edge of the iterate points more than 90 degrees away from its frame's tangent;
+  /// when an edge of the iterate points more than 170 degrees away from its frame's tangent;
   /// returns whether it did. The transport P_{a -> b} divides by 1 + a.b: measured on a 2 um
   /// rod under ADONIS at 100 ms (the tension-free whip over 5 s, step 33), edges 2-5 turned
   /// by 179.3 to 179.9996 degrees within the step (1 + a.b down to 2.8e-11), E_inc varied by
   /// +-3e-21 (5e-10 of its value) between points 3e-15 m apart, and the line search failed
   /// at |f| = 8.7e-11 with a 7.2e-8 m step from both starts. Transported from an anchor that
-  /// an edge has turned less than 90 degrees from, the division is by more than 1. The energy
+  /// the edges have turned little from, the division is by nearly 2. The energy
   /// is the same function of q at the anchor itself; elsewhere its directors differ from the
   /// start's transport by the holonomy of the detour, a change of reference frame that the
   /// twist angles absorb (the step's end transports from the same anchor).
+  /// follow_frames re-anchors once an edge has turned by more than 170 degrees from its
+  /// frame's tangent (1 + a.b below 0.015: round-off amplified 65 times and more). At 90
+  /// degrees the 5 s edge-whip sweeps lost more cells than they gained: every re-anchoring
+  /// changes the Newton path, and on these nonconvex large steps its end.
+  static constexpr double follow_frames_cos = 0.98480775301220802;  // -cos(170 degrees)
   template <class Body>
   bool follow_frames(Body& b) const {
     if (!prm_.follow_frames) return false;
@@ -483,7 +488,7 @@ class RodBackwardEuler {
       for (int j = 0; j < edges; ++j) {
         const Eigen::Vector3d e = b.q.template segment<3>(4 * j + 4) + b.d.template segment<3>(4 * j + 4) - b.q.template segment<3>(4 * j) -
                                   b.d.template segment<3>(4 * j);
-        if (e.dot(b.frames.tangent[j]) < 0) {
+        if (e.dot(b.frames.tangent[j]) < -follow_frames_cos * e.norm()) {
           b.frames = b.model.transport(b.frames, b.q + b.d);
           return true;
         }
