@@ -263,6 +263,25 @@ WhipRun run_whip(AnySimulator& sim, int steps) {
   }
   return w;
 }
+
+/// Steps `sim` to t = `end`, each required to succeed: the steps taken, the first one's number
+/// and DEL Newton iterations, the most DEL Newton iterations of a step and the largest strain
+/// at a step's end.
+struct RunToEnd {
+  int steps = 0, first_step = 0, first_newton = 0, newton_max = 0;
+  double strain = 0;
+};
+RunToEnd run_to(AnySimulator& sim, double end) {
+  RunToEnd w;
+  for (; sim.state().t < end - 1e-9; ++w.steps) {
+    const StepReport k = sim.step();
+    REQUIRE_MESSAGE(k.ok(), k.message);
+    if (w.steps == 0) w.first_step = k.step, w.first_newton = k.newton.iterations;
+    w.newton_max = std::max(w.newton_max, k.newton.iterations);
+    w.strain = std::max(w.strain, k.contact.max_stretch);
+  }
+  return w;
+}
 }  // namespace
 
 TEST_SUITE("rods") {
@@ -791,19 +810,12 @@ TEST_SUITE("rods") {
     CHECK(failed.step == 143);
     CHECK(failed.message.find("did not converge in 200 Newton iterations") != std::string::npos);  // the guard
     auto on = whip("true");
-    int steps = 0, most = 0;
-    double strain = 0;
-    for (; on->state().t < 5 - 1e-9; ++steps) {
-      const StepReport k = on->step();
-      REQUIRE_MESSAGE(k.ok(), k.message);
-      if (steps == 0) MESSAGE("expand = true, step " << k.step << ": " << k.newton.iterations << " DEL Newton iterations");
-      most = std::max(most, k.newton.iterations);
-      strain = std::max(strain, k.contact.max_stretch);
-    }
-    MESSAGE(steps << " steps to t = 5 s, at most " << most << " DEL Newton iterations, largest strain " << strain);
-    CHECK(steps == 25);  // steps 143-167
-    CHECK(most < 200);
-    CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
+    const RunToEnd r = run_to(*on, 5);
+    MESSAGE("expand = true, step " << r.first_step << ": " << r.first_newton << " DEL Newton iterations; " << r.steps
+                                      << " steps to t = 5 s, at most " << r.newton_max << " DEL Newton iterations, largest strain " << r.strain);
+    CHECK(r.steps == 25);  // steps 143-167
+    CHECK(r.newton_max < 200);
+    CHECK(r.strain <= 0.0101);  // ADONIS's stretch_tol
   }
   TEST_CASE("rods: the rod DEL transports the frames from its iterate when edges turn by nearly pi in one step (replayed step 33)") {
     // scenes/whip_edge_5s.json with a 2 um rod under ADONIS at 100 ms, from the state before
@@ -837,19 +849,12 @@ TEST_SUITE("rods") {
     CHECK(contact_failed.failed_stage == "contact response");
     CHECK(short_rounds->checkpoint().arrays == before_34.arrays);
     auto on = whip("true");
-    int steps = 0, most = 0;
-    double strain = 0;
-    for (; on->state().t < 5 - 1e-9; ++steps) {
-      const StepReport k = on->step();
-      REQUIRE_MESSAGE(k.ok(), k.message);
-      if (steps == 0) MESSAGE("follow_frames = true, step " << k.step << ": " << k.newton.iterations << " DEL Newton iterations");
-      most = std::max(most, k.newton.iterations);
-      strain = std::max(strain, k.contact.max_stretch);
-    }
-    MESSAGE(steps << " steps to t = 5 s, at most " << most << " DEL Newton iterations, largest strain " << strain);
-    CHECK(steps == 18);  // steps 33-50
-    CHECK(most < 50);
-    CHECK(strain <= 0.0101);  // ADONIS's stretch_tol
+    const RunToEnd r = run_to(*on, 5);
+    MESSAGE("follow_frames = true, step " << r.first_step << ": " << r.first_newton << " DEL Newton iterations; " << r.steps
+                                      << " steps to t = 5 s, at most " << r.newton_max << " DEL Newton iterations, largest strain " << r.strain);
+    CHECK(r.steps == 18);  // steps 33-50
+    CHECK(r.newton_max < 50);
+    CHECK(r.strain <= 0.0101);  // ADONIS's stretch_tol
   }
   TEST_CASE("rods: ADONIS keeps the less stretched of two capped results (replayed step 163 of the 5 s edge whip)") {
     // scenes/whip_edge_5s.json with a 1 um rod under ADONIS at 30 ms, from the state after
