@@ -821,8 +821,8 @@ TEST_SUITE("rods") {
     // scenes/whip_edge_5s.json with a 2 um rod under ADONIS at 100 ms, from the state before
     // step 33 (bench/results/rods/figure_9_2_edge/follow_frames/). The handle reverses within
     // the step and edges 2-5 turn by 179.3 to 179.9996 degrees; the transport from the
-    // step's start divides by 1 + a.b down to 2.8e-11, E_inc varies by 5e-10 of its value
-    // between points 3e-15 m apart, and the line search fails from both starts.
+    // step's start divides by 1 + a.b down to 2.8e-11, E_inc changes by 4e-10 of its value
+    // between points 4e-15 m apart, and the line search fails from both starts.
     const auto whip = [](const char* follow, const char* redetections = "20") {
       auto sim = make_simulator(load_scene(support::source_path("scenes/whip_edge_5s.json"),
                                            {"combo=rods_adonis", "rods.0.material.radius=2e-6", "time.dt=0.1", "time.frame_rate=10",
