@@ -192,7 +192,7 @@ class RodBackwardEuler {
       if (b.fixed[i]) b.d[i] = b.target[i] - b.q[i];
     rep.tolerance = prm_.tolerance * b.mean_edge;
     const Eigen::VectorXd guess = b.d;
-    const auto start_frames = frames_of(b);  // the frames (and twist branches) at the step's start, put back when a solve fails
+    const auto start_frames = b.frames;  // the frames (and twist branches) at the step's start, put back when a solve fails
     Eigen::VectorXd leader;
     double E = potential(b, b.d, h);
     bool from_leader = false;
@@ -210,7 +210,7 @@ class RodBackwardEuler {
     if (follow_frames(b)) E = potential(b, b.d, h);
     newton(b, h, E, rep);
     if (rep.status == Status::success) return rep;
-    set_frames(b, start_frames);
+    b.frames = start_frames;
     if (!prm_.follow_the_leader || !prm_.retry_start) return rep;
     // The other start. Measured on a 2 um rod under ADONIS at 5 ms (the tension-free whip,
     // step 61): from the follow-the-leader projection Newton ends in "line search failed ...
@@ -229,7 +229,7 @@ class RodBackwardEuler {
     second.iterations = 0;
     newton(b, h, Eo, second);
     if (second.status != Status::success) {
-      set_frames(b, start_frames);
+      b.frames = start_frames;
       b.d = failed;  // the first failure, as before, with both attempts' work
       rep.iterations += second.iterations;
       rep.message += fmt::format("; from the {} as well: {}", from_leader ? "guess h v" : "follow-the-leader projection", second.message);
@@ -373,8 +373,8 @@ class RodBackwardEuler {
       }
       // A short accepted step is progress, not convergence: only the full Newton step decides.
       b.d = trial;
-      follow_twist(b);
-      const bool moved = follow_frames(b);
+      const bool moved = follow_frames(b);  // its transport moves the twist branches as well
+      if (!moved) follow_twist(b);
       E = prm_.follow_twist || moved ? potential(b, b.d, h) : Et;  // Et, unless the iterate's twist or frames moved the energy's anchor
       rep.iterations = it + 1;
     }
@@ -454,16 +454,6 @@ class RodBackwardEuler {
       b.frames.reference_twist = b.model.transport(b.frames, b.q + b.d).reference_twist;
   }
 
-  /// The body's frames (a copy to restore), or 0 for a model without them.
-  template <class Body>
-  static auto frames_of(const Body& b) {
-    if constexpr (requires { b.frames.tangent; }) return b.frames;
-    else return 0;
-  }
-  template <class Body, class F>
-  static void set_frames(Body& b, const F& frames) {
-    if constexpr (requires { b.frames.tangent; }) b.frames = frames;
-  }
   /// Re-anchors the frames at the iterate q + d (transported there, twist branches included)
   /// when an edge of the iterate points more than 170 degrees away from its frame's tangent;
   /// returns whether it did. The transport P_{a -> b} divides by 1 + a.b: measured on a 2 um

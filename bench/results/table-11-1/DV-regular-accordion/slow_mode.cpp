@@ -65,11 +65,9 @@ int main(int argc, char** argv) {
   std::mt19937 g(1); std::normal_distribution<double> N;
   Eigen::VectorXd e(3 * n), Ae, z;
   for (int i = 0; i < 3 * n; ++i) e[i] = N(g);
-  double rho = 0;
   for (int it = 0; it < 60; ++it) {
     A.multiply(e, Ae); B.apply(Ae, z);
     Eigen::VectorXd en = e - z;
-    rho = std::sqrt(en.dot(Ae.cwiseProduct(Eigen::VectorXd::Ones(3*n)) * 0 + en)) / e.norm();
     e = en / en.norm();
   }
   A.multiply(e, Ae); B.apply(Ae, z);
