@@ -271,6 +271,65 @@ Aggregates aggregate(const BsrView<B, B>& A, const std::vector<std::uint8_t>& st
   return out;
 }
 
+SheetEdges sheet_edges(const BsrView<3, 3>& A) {
+  SheetEdges edges;
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int j = A.col[k];
+      if (j <= i) continue;
+      const Mat<3> M = A.block(i, k);
+      const double f2 = M.squaredNorm();
+      if (!(f2 > 0)) continue;  // a block the filters zeroed
+      Mat<3> adj;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          adj(r, c) = M((r + 1) % 3, (c + 1) % 3) * M((r + 2) % 3, (c + 2) % 3) -
+                      M((r + 1) % 3, (c + 2) % 3) * M((r + 2) % 3, (c + 1) % 3);
+      if (adj.norm() > rank_one_tolerance * f2) edges.emplace_back(i, j);  // else a spring
+    }
+  return edges;
+}
+
+int split_sheets(const SheetEdges& edges, Aggregates& aggs) {
+  std::vector<int>& agg = aggs.node_agg;
+  const int n = static_cast<int>(agg.size());
+  std::vector<int> root(n);
+  std::iota(root.begin(), root.end(), 0);
+  auto find = [&](int i) {
+    while (root[i] != i) i = root[i] = root[root[i]];
+    return i;
+  };
+  auto join = [&](int i, int j) {
+    const int a = find(i), b = find(j);
+    if (a != b) root[std::max(a, b)] = std::min(a, b);
+  };
+  for (const auto& [i, j] : edges)
+    if (agg[i] >= 0 && agg[i] == agg[j]) join(i, j);
+  std::vector<int> label(n, -1);
+  int count = 0;
+  for (int i = 0; i < n; ++i)
+    if (agg[i] >= 0 && label[find(i)] < 0) label[find(i)] = count++;
+  const int before = aggs.count;
+  std::vector<int> size(count, 0);
+  for (int i = 0; i < n; ++i)
+    if (agg[i] >= 0) agg[i] = label[find(i)], ++size[agg[i]];
+  aggs.count = count;
+  aggs.max_size = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
+  return count - before;
+}
+
+SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs) {
+  SheetEdges coarse;
+  coarse.reserve(edges.size() / 4);
+  for (const auto& [i, j] : edges) {
+    const int a = aggs.node_agg[i], b = aggs.node_agg[j];
+    if (a >= 0 && b >= 0 && a != b) coarse.emplace_back(std::min(a, b), std::max(a, b));
+  }
+  std::sort(coarse.begin(), coarse.end());
+  coarse.erase(std::unique(coarse.begin(), coarse.end()), coarse.end());
+  return coarse;
+}
+
 NullSpace rigid_body_modes(const Eigen::VectorXd& positions, const ConstraintSet* constraints) {
   const int n = static_cast<int>(positions.size() / 3);
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -616,6 +675,7 @@ struct Level {
   std::vector<std::uint8_t> filter;  // theta != aggregation_theta: the smoothing filter's strong flags
   sa::Aggregates aggs;
   int num_special = 0;
+  int sheet_splits = 0;  // aggregates added by split_sheets
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
@@ -811,7 +871,7 @@ double aggregation_threshold(const SaAmg::Params& prm) { return prm.aggregation_
 
 /// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
 template <int B>
-Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse) {
+Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse, sa::SheetEdges sheets = {}) {
   const auto& prm = ctx.prm;
   auto& T = ctx.times;
   const auto A = L.A();
@@ -848,6 +908,11 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       {
         ScopedTimer t(T.aggregation);
         L.aggs = sa::aggregate<B>(A, L.strong, L.special);
+        if (prm.split_sheets) {
+          if constexpr (B == 3) sheets = sa::sheet_edges(A);
+          L.sheet_splits = sa::split_sheets(sheets, L.aggs);
+          sheets = sa::coarse_sheet_edges(sheets, L.aggs);
+        }
       }
       if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
         // The smoothing filter's own threshold; blocks touching a special node stay
@@ -884,6 +949,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   st.special = L.num_special;
   st.aggregates = L.aggs.count;
   st.max_aggregate = L.aggs.max_size;
+  st.sheet_splits = L.sheet_splits;
 
   sa::Tentative tent;
   {
@@ -1005,7 +1071,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   C.f.resize(6 * nc);
   C.x.resize(6 * nc);
   C.d.resize(6 * nc);
-  return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse);
+  return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse, std::move(sheets));
 }
 
 }  // namespace

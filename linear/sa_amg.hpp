@@ -95,6 +95,7 @@ struct SaLevelStats {
   int special = 0;             ///< special nodes (no interpolation)
   int aggregates = 0;          ///< = rows of the next level (0 on the coarsest)
   int deficient = 0;           ///< aggregates whose local QR dropped a column
+  int sheet_splits = 0;        ///< aggregates added by `split_sheets`
   int max_aggregate = 0;       ///< largest aggregate (nodes)
   long long nnz_p = 0;         ///< stored blocks of P_l
   int restriction_chunks = 0;  ///< row chunks of the parallel restriction P_l^T r (0: implicit P_l or coarsest)
@@ -151,6 +152,22 @@ struct Aggregates {
 template <int B>
 Aggregates aggregate(const BsrView<B, B>& A, const std::vector<std::uint8_t>& strong,
                      const std::vector<std::uint8_t>& special);
+
+/// A 3x3 coupling block counts as rank-one when ||adj M||_F <= this * ||M||_F^2 (the ratio
+/// is about sigma_2 / sigma_1 once sigma_3 << sigma_2): a spring k n n^T gives round-off,
+/// a membrane block order one.
+inline constexpr double rank_one_tolerance = 1e-6;
+/// The couplings along which a level's nodes form sheets, as (i, j) pairs with i < j.
+using SheetEdges = std::vector<std::pair<int, int>>;
+/// The fine level's sheet couplings: the off-diagonal blocks that are not rank-one.
+SheetEdges sheet_edges(const BsrView<3, 3>& A);
+/// Splits every aggregate into its sheets, the connected components of its members under
+/// `edges` (`SaAmg::Params::split_sheets`). Aggregates are renumbered in the order of their
+/// first node. Returns how many aggregates it added.
+int split_sheets(const SheetEdges& edges, Aggregates& aggs);
+/// The next level's sheet couplings: aggregates a != b are coupled when two of their members
+/// are (sorted, without duplicates).
+SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs);
 
 /// The six rigid-body modes at `positions` (3 per vertex, centred on their mean), filtered
 /// K <- S K when `constraints` is given (spec 04 §4.2).
@@ -283,6 +300,20 @@ class SaAmg {
     /// double precision; about the size of the default fixed16 P (about 40 bytes per block),
     /// which the cycle restricts by rows with no transpose index.
     bool implicit_prolongator = false;
+    /// Split each aggregate into its sheets. On the fine level a sheet is a component of the
+    /// aggregate's couplings whose 3x3 block is not rank-one (a contact or repulsion spring's
+    /// k n n^T is; membrane and bending blocks of a curved sheet are not); on a coarse level,
+    /// two nodes are in one sheet when members of theirs were. Layers joined by normal springs
+    /// slide over each other, so each needs its own in-plane translations and rotations,
+    /// which the six rigid modes of an aggregate spanning the stack cannot give (bending the
+    /// stack would shear it). Aggregation still follows the springs, so the per-layer pieces
+    /// line up from layer to layer and the coarse space keeps the stack's common normal
+    /// motion. Regular dropVertical at 160k: 78.5 -> 34 iterations, at 2.4x the coarse memory;
+    /// with aggregation_theta = 0.25 (bench solver `sa_ppcg_sheets`) 36.5 at 1.45x. Irregular
+    /// dropVertical, whose oblique springs bond the layers in shear, gets slower (26.5 -> 33-39
+    /// iterations at 160k): off by default (bench/results/table-11-1/DV-regular-accordion.md,
+    /// section 5).
+    bool split_sheets = false;
 
     template <class V>
     void visit(V& v) {
@@ -324,6 +355,8 @@ class SaAmg {
               {Unit::none, Range::any(), "the fine level's smoother solves with A's diagonal blocks at each use instead of storing their inverses"});
       v.field("implicit_prolongator", implicit_prolongator,
               {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
+      v.field("split_sheets", split_sheets,
+              {Unit::none, Range::any(), "split each aggregate into its sheets: on the fine level the components of its couplings that are not rank-one (springs k n n^T are), on coarse levels those inherited"});
     }
   };
   static Checker validate(const Params& p);

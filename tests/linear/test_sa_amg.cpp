@@ -123,6 +123,79 @@ Eigen::VectorXd jacobi_spectrum(const Eigen::MatrixXd& A, int b) {
   return es.eigenvalues();
 }
 
+/// `layers` copies of the prefiltered two-sides-pinned cloth stacked `gap` apart in z, each
+/// free vertex joined to the one above it by a spring of stiffness k along z (Hessian
+/// k e_z e_z^T, rank one): layers that slide freely over each other, like the aligned
+/// accordion of the bench's regular dropVertical. k is in the matrix's units (M + dt^2 H);
+/// the bench's springs are some 6000 vertex masses.
+struct SpringStack {
+  BlockCsr A;
+  Eigen::VectorXd x, b;
+  ConstraintSet pins;
+  int per_layer = 0;
+};
+
+SpringStack spring_stack(int m, int layers, double k, double gap = 5e-3) {
+  const Prefiltered p = prefiltered_cloth(m, Tessellation::regular, Pins::two_sides);
+  const int n = p.Ahat.block_rows();
+  SpringStack s;
+  s.per_layer = n;
+  auto sprung = [&](int i) { return p.sys.pins.count(i) == 0; };
+  std::vector<std::vector<int>> columns(static_cast<std::size_t>(n) * layers);
+  for (int l = 0; l < layers; ++l)
+    for (int i = 0; i < n; ++i) {
+      auto& c = columns[l * n + i];
+      for (int q = p.Ahat.row_ptr()[i]; q < p.Ahat.row_ptr()[i + 1]; ++q) c.push_back(l * n + p.Ahat.col()[q]);
+      if (sprung(i) && l > 0) c.push_back((l - 1) * n + i);
+      if (sprung(i) && l + 1 < layers) c.push_back((l + 1) * n + i);
+      std::sort(c.begin(), c.end());
+    }
+  s.A = BlockCsr(columns);
+  s.A.set_zero();
+  s.x.resize(3 * n * layers);
+  s.b.resize(3 * n * layers);
+  s.pins.reset(n * layers);
+  Block3 Kz = Block3::Zero();
+  Kz(2, 2) = k;
+  for (int l = 0; l < layers; ++l)
+    for (int i = 0; i < n; ++i) {
+      const int r = l * n + i;
+      for (int q = p.Ahat.row_ptr()[i]; q < p.Ahat.row_ptr()[i + 1]; ++q)
+        s.A.block(s.A.find(r, l * n + p.Ahat.col()[q])) = p.Ahat.block(q);
+      if (sprung(i))
+        for (int o : {l - 1, l + 1})
+          if (o >= 0 && o < layers) {
+            s.A.block(s.A.diagonal(r)) += Kz;
+            s.A.block(s.A.find(r, o * n + i)) -= Kz;
+          }
+      s.x.segment<3>(3 * r) = p.sys.x.segment<3>(3 * i) + Eigen::Vector3d(0, 0, l * gap);
+      s.b.segment<3>(3 * r) = p.chat.segment<3>(3 * i);
+      if (!sprung(i)) s.pins.fix(r, Eigen::Vector3d::Zero());
+    }
+  return s;
+}
+
+/// Fine-level aggregates of A at the default thresholds.
+sa::Aggregates fine_aggregates(const BsrView<3, 3>& A) {
+  std::vector<double> mu;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(A, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(A, mu, 1e-2, strong, special);
+  return sa::aggregate<3>(A, strong, special);
+}
+
+/// Aggregates with members in more than one layer of `per_layer` nodes.
+int aggregates_across_layers(const sa::Aggregates& ag, int per_layer) {
+  std::vector<int> layer(ag.count, -1), across(ag.count, 0);
+  for (int i = 0; i < static_cast<int>(ag.node_agg.size()); ++i) {
+    const int a = ag.node_agg[i];
+    if (a < 0) continue;
+    if (layer[a] < 0) layer[a] = i / per_layer;
+    across[a] |= layer[a] != i / per_layer;
+  }
+  return static_cast<int>(std::count(across.begin(), across.end(), 1));
+}
+
 }  // namespace
 
 TEST_SUITE("linear") {
@@ -267,6 +340,88 @@ TEST_CASE("sa: aggregates are disjoint and connected and cover the non-special n
     const sa::Aggregates again = sa::aggregate<3>(A, strong, special);
     CHECK(again.node_agg == ag.node_agg);
   }
+}
+
+TEST_CASE("sa: split_sheets cuts the aggregates of a spring-joined stack into its layers and leaves a single sheet alone") {
+  const SpringStack st = spring_stack(21, 4, 0.01);
+  const auto A = bsr_view(st.A);
+  sa::Aggregates ag = fine_aggregates(A);
+  const int before = ag.count, across = aggregates_across_layers(ag, st.per_layer);
+  MESSAGE("stack of 4 layers of 441: " << before << " aggregates, " << across << " across layers");
+  REQUIRE(across > before / 4);  // the springs are strong: aggregation follows them
+  const sa::SheetEdges edges = sa::sheet_edges(A);
+  for (const auto& [i, j] : edges) CHECK(i / st.per_layer == j / st.per_layer);  // springs are no sheet edges
+  const int added = sa::split_sheets(edges, ag);
+  CHECK(added == ag.count - before);
+  CHECK(added >= across);  // each aggregate across layers gives at least one more
+  CHECK(aggregates_across_layers(ag, st.per_layer) == 0);
+  // The coarse level's sheets: its nodes stay within their layer.
+  std::vector<int> layer_of(ag.count, -1);
+  for (int i = 0; i < A.rows; ++i)
+    if (ag.node_agg[i] >= 0) layer_of[ag.node_agg[i]] = i / st.per_layer;
+  const sa::SheetEdges coarse = sa::coarse_sheet_edges(edges, ag);
+  CHECK(coarse.size() > static_cast<std::size_t>(ag.count));
+  CHECK(std::is_sorted(coarse.begin(), coarse.end()));
+  for (const auto& [a, b] : coarse) CHECK((a < b && layer_of[a] == layer_of[b]));
+  // Every piece is still connected through non-spring couplings of its layer, and
+  // aggregates are numbered in the order of their first node.
+  std::vector<int> first(ag.count, -1);
+  for (int i = 0; i < A.rows; ++i)
+    if (ag.node_agg[i] >= 0 && first[ag.node_agg[i]] < 0) first[ag.node_agg[i]] = i;
+  CHECK(std::is_sorted(first.begin(), first.end()));
+  CHECK(std::count(first.begin(), first.end(), -1) == 0);
+  // A single sheet, regular and irregular (whose flat hinges couple wing tips by rank-one
+  // blocks): the split changes nothing on the regular one, and on the irregular one only
+  // cuts off nodes an aggregate held through a rank-one block alone.
+  for (Tessellation t : {Tessellation::regular, Tessellation::irregular}) {
+    const Prefiltered p = prefiltered_cloth(21, t, Pins::two_sides);
+    const auto S = bsr_view(p.Ahat);
+    sa::Aggregates one = fine_aggregates(S);
+    const std::vector<int> original = one.node_agg;
+    const int splits = sa::split_sheets(sa::sheet_edges(S), one);
+    MESSAGE("single sheet, tessellation " << static_cast<int>(t) << ": " << splits << " splits of " << one.count - splits);
+    if (t == Tessellation::regular) {
+      CHECK(splits == 0);
+      CHECK(one.node_agg == original);
+    } else {
+      CHECK(splits <= (one.count - splits) / 10);
+    }
+  }
+}
+
+TEST_CASE("sa: split_sheets keeps the V-cycle SPD and cuts the PCG iterations on a stack of unbonded layers") {
+  SaAmg::Params split = small_coarse(20);
+  split.split_sheets = true;
+  {
+    const SpringStack st = spring_stack(9, 3, 0.01);
+    SaAmg sa(split);
+    REQUIRE(sa.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+    CHECK(sa.stats().levels[0].sheet_splits > 0);
+    checked_spd_map(sa, st.A.rows());
+  }
+  // Springs of about 100 vertex masses (the layers' mass matrix is 8.9e-5 per vertex): a
+  // sweep of k in {0.01, 0.1, 1, 10} and m in {21, 41, 61} gave 30 -> 9, 33 -> 16, 48 -> 43
+  // and 130 -> 66 iterations at m = 41; the default grows with m at every k.
+  const SpringStack st = spring_stack(41, 4, 0.01);
+  SaAmg plain(small_coarse(50)), layered([] {
+    SaAmg::Params p = small_coarse(50);
+    p.split_sheets = true;
+    return p;
+  }());
+  REQUIRE(plain.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+  REQUIRE(layered.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+  const PcgResult a = pcg(st.A, st.b, plain), b = pcg(st.A, st.b, layered);
+  MESSAGE("stack of 4 layers of 41 x 41: " << a.iterations << " iterations, " << b.iterations << " with split_sheets ("
+                                           << layered.stats().levels[0].sheet_splits << " splits)");
+  CHECK(a.converged);
+  CHECK(b.converged);
+  CHECK(b.iterations <= 0.5 * a.iterations);
+  // On a single sheet the option changes nothing.
+  const Prefiltered p = prefiltered_cloth(41, Tessellation::regular, Pins::two_sides);
+  REQUIRE(plain.setup(p.Ahat, SolveContext{&p.sys.pins, &p.sys.x}) == Status::success);
+  REQUIRE(layered.setup(p.Ahat, SolveContext{&p.sys.pins, &p.sys.x}) == Status::success);
+  CHECK(layered.stats().levels[0].sheet_splits == 0);
+  CHECK(pcg(p.Ahat, p.chat, layered).iterations == pcg(p.Ahat, p.chat, plain).iterations);
 }
 
 TEST_CASE("sa: the tentative prolongator is orthonormal and interpolates the near null space") {
