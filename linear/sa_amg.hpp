@@ -302,17 +302,18 @@ class SaAmg {
     bool implicit_prolongator = false;
     /// Split each aggregate into its sheets. On the fine level a sheet is a component of the
     /// aggregate's couplings whose 3x3 block is not rank-one (a contact or repulsion spring's
-    /// k n n^T is; membrane and bending blocks of a curved sheet are not); on a coarse level,
-    /// two nodes are in one sheet when members of theirs were. Layers joined by normal springs
-    /// slide over each other, so each needs its own in-plane translations and rotations,
-    /// which the six rigid modes of an aggregate spanning the stack cannot give (bending the
-    /// stack would shear it). Aggregation still follows the springs, so the per-layer pieces
-    /// line up from layer to layer and the coarse space keeps the stack's common normal
-    /// motion. Regular dropVertical at 160k: 78.5 -> 34 iterations, at 2.4x the coarse memory;
-    /// with aggregation_theta = 0.25 (bench solver `sa_ppcg_sheets`) 36.5 at 1.45x. Irregular
-    /// dropVertical, whose oblique springs bond the layers in shear, gets slower (26.5 -> 33-39
-    /// iterations at 160k): off by default (bench/results/table-11-1/DV-regular-accordion.md,
-    /// section 5).
+    /// k n n^T is, and so is a flat hinge's coupling of its two wing tips; membrane blocks are
+    /// not); on a coarse level, two nodes are in one sheet when members of theirs were.
+    /// Layers joined by normal springs slide over each other, so each needs its own in-plane
+    /// translations and rotations, which the six rigid modes of an aggregate spanning the
+    /// stack cannot give (bending the stack would shear it). Aggregation still follows the
+    /// springs, so the per-layer pieces line up from layer to layer and the coarse space keeps
+    /// the stack's common normal motion. Regular dropVertical at 40k: 69.5 -> 25.5 iterations
+    /// at 2.2x SA's own memory; with aggregation_theta = 0.25 (bench solver `sa_ppcg_sheets`)
+    /// 78.5 -> 36.5 at 160k and 92.5 -> 54 at 361k, at 1.45x and 1.03x. Irregular
+    /// dropVertical, whose oblique springs bond the layers in shear, gets slower (30 -> 49.5
+    /// iterations at 361k with `sa_ppcg_sheets`): off by default
+    /// (bench/results/table-11-1/DV-regular-accordion.md, section 5).
     bool split_sheets = false;
 
     template <class V>
