@@ -14,6 +14,7 @@
 #include "contact/impulse_kernels.hpp"
 #include "framework/error.hpp"
 #include "framework/timers.hpp"
+#include "framework/union_find.hpp"
 
 namespace weft::contact {
 
@@ -35,23 +36,6 @@ double separation(const StencilContact& c, const Eigen::VectorXd& x) {
   for (int j = 0; j < 4; ++j) g += c.gamma[j] * x.segment<3>(3 * c.v[j]);
   return c.n.dot(g);
 }
-
-/// Union-find with path halving; the smaller id becomes the root (deterministic).
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  }
-  void unite(int a, int b) {
-    a = find(a);
-    b = find(b);
-    if (a == b) return;
-    if (b < a) std::swap(a, b);
-    parent[b] = a;
-  }
-};
 
 }  // namespace
 

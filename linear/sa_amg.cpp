@@ -11,6 +11,7 @@
 
 #include "framework/error.hpp"
 #include "framework/timers.hpp"
+#include "framework/union_find.hpp"
 
 namespace weft::linear {
 
@@ -280,12 +281,10 @@ SheetEdges sheet_edges(const BsrView<3, 3>& A) {
       const Mat<3> M = A.block(i, k);
       const double f2 = M.squaredNorm();
       if (!(f2 > 0)) continue;  // a block the filters zeroed
-      Mat<3> adj;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-          adj(r, c) = M((r + 1) % 3, (c + 1) % 3) * M((r + 2) % 3, (c + 2) % 3) -
-                      M((r + 1) % 3, (c + 2) % 3) * M((r + 2) % 3, (c + 1) % 3);
-      if (adj.norm() > rank_one_tolerance * f2) edges.emplace_back(i, j);  // else a spring
+      // ||adj M||_F^2: the cofactor rows are the cross products of M's rows.
+      const Eigen::Vector3d r0 = M.row(0), r1 = M.row(1), r2 = M.row(2);
+      const double adj2 = r1.cross(r2).squaredNorm() + r2.cross(r0).squaredNorm() + r0.cross(r1).squaredNorm();
+      if (adj2 > rank_one_tolerance * rank_one_tolerance * f2 * f2) edges.emplace_back(i, j);  // else a spring
     }
   return edges;
 }
@@ -293,26 +292,17 @@ SheetEdges sheet_edges(const BsrView<3, 3>& A) {
 int split_sheets(const SheetEdges& edges, Aggregates& aggs) {
   std::vector<int>& agg = aggs.node_agg;
   const int n = static_cast<int>(agg.size());
-  std::vector<int> root(n);
-  std::iota(root.begin(), root.end(), 0);
-  auto find = [&](int i) {
-    while (root[i] != i) i = root[i] = root[root[i]];
-    return i;
-  };
-  auto join = [&](int i, int j) {
-    const int a = find(i), b = find(j);
-    if (a != b) root[std::max(a, b)] = std::min(a, b);
-  };
+  UnionFind sheets(n);
   for (const auto& [i, j] : edges)
-    if (agg[i] >= 0 && agg[i] == agg[j]) join(i, j);
+    if (agg[i] >= 0 && agg[i] == agg[j]) sheets.unite(i, j);
   std::vector<int> label(n, -1);
   int count = 0;
   for (int i = 0; i < n; ++i)
-    if (agg[i] >= 0 && label[find(i)] < 0) label[find(i)] = count++;
+    if (agg[i] >= 0 && label[sheets.find(i)] < 0) label[sheets.find(i)] = count++;
   const int before = aggs.count;
   std::vector<int> size(count, 0);
   for (int i = 0; i < n; ++i)
-    if (agg[i] >= 0) agg[i] = label[find(i)], ++size[agg[i]];
+    if (agg[i] >= 0) agg[i] = label[sheets.find(i)], ++size[agg[i]];
   aggs.count = count;
   aggs.max_size = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
   return count - before;

@@ -15,6 +15,7 @@
 #include <omp.h>
 #endif
 
+#include "framework/union_find.hpp"
 #include "linear/prefilter.hpp"
 #include "linear/sa_amg.hpp"
 #include "tests/support/linear_fixtures.hpp"
@@ -363,8 +364,18 @@ TEST_CASE("sa: split_sheets cuts the aggregates of a spring-joined stack into it
   CHECK(coarse.size() > static_cast<std::size_t>(ag.count));
   CHECK(std::is_sorted(coarse.begin(), coarse.end()));
   for (const auto& [a, b] : coarse) CHECK((a < b && layer_of[a] == layer_of[b]));
-  // Every piece is still connected through non-spring couplings of its layer, and
-  // aggregates are numbered in the order of their first node.
+  // Every piece is connected through the non-spring couplings of its layer, and aggregates
+  // are numbered in the order of their first node.
+  UnionFind pieces(A.rows);
+  for (const auto& [i, j] : edges)
+    if (ag.node_agg[i] >= 0 && ag.node_agg[i] == ag.node_agg[j]) pieces.unite(i, j);
+  std::vector<int> piece_root(ag.count, -1);
+  for (int i = 0; i < A.rows; ++i) {
+    const int a = ag.node_agg[i];
+    if (a < 0) continue;
+    if (piece_root[a] < 0) piece_root[a] = pieces.find(i);
+    CHECK(pieces.find(i) == piece_root[a]);
+  }
   std::vector<int> first(ag.count, -1);
   for (int i = 0; i < A.rows; ++i)
     if (ag.node_agg[i] >= 0 && first[ag.node_agg[i]] < 0) first[ag.node_agg[i]] = i;
