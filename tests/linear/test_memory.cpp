@@ -3,6 +3,8 @@
 // and the memory SA+PPCG owns against the matrix it is given.
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "linear/bsr.hpp"
@@ -146,6 +148,59 @@ TEST_SUITE("linear") {
     CHECK(Sf.stored_value(Sf.diagonal_index(1)) == Eigen::MatrixXd(Df.block<6, 6>(6, 6)));
     spmv(Sf.view(), x.data(), y.data());
     CHECK((y - Df * x).norm() <= 1e-14 * (Df * x).norm());
+  }
+
+  TEST_CASE("bsr: the single-precision one-triangle 6x6 product is the portable kernel's bit for bit and the rounded blocks' product to round-off") {
+    // A random structurally symmetric pattern (row lengths 1 to 40, columns far and near),
+    // so rows mix stored and transposed blocks in every order.
+    support::Rng rng(11);
+    const int n = 300;
+    std::vector<std::vector<int>> cols(n);
+    for (int i = 0; i < n; ++i) cols[i].push_back(i);
+    for (int i = 0; i < n; ++i) {
+      const int extra = static_cast<int>(rng.uniform(0, 20));
+      for (int t = 0; t < extra; ++t) {
+        const int j = static_cast<int>(rng.uniform(0, n - 1e-9));
+        cols[i].push_back(j);
+        cols[j].push_back(i);
+      }
+    }
+    std::vector<int> ptr{0}, col;
+    for (auto& c : cols) {
+      std::sort(c.begin(), c.end());
+      c.erase(std::unique(c.begin(), c.end()), c.end());
+      col.insert(col.end(), c.begin(), c.end());
+      ptr.push_back(static_cast<int>(col.size()));
+    }
+    SymBlockMatrix<6> Sf(n, ptr, col, /*single=*/true);
+    for (int s = 0; s < Sf.stored_blocks(); ++s) {
+      Eigen::Matrix<double, 6, 6> b;
+      for (int e = 0; e < 36; ++e) b(e / 6, e % 6) = rng.uniform(-1, 1) * std::pow(10.0, rng.uniform(-3, 3));
+      Sf.store(s, b);
+    }
+    for (int i = 0; i < n; ++i) {  // a symmetric matrix's diagonal blocks are symmetric
+      const Eigen::Matrix<double, 6, 6> d = Sf.stored_value(Sf.diagonal_index(i));
+      Sf.store(Sf.diagonal_index(i), 0.5 * (d + d.transpose()));
+    }
+    const auto V = Sf.view();
+    REQUIRE(V.valf != nullptr);
+    int transposed = 0;
+    for (int k = 0; k < V.nnz(); ++k) transposed += V.transposed(k);
+    REQUIRE(transposed > 1000);
+    Eigen::VectorXd x(6 * n), y(6 * n);
+    for (int k = 0; k < 6 * n; ++k) x[k] = rng.uniform(-1, 1);
+    spmv(V, x.data(), y.data());  // through row_product, the SSE2 kernel on x86-64
+    int differ = 0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Matrix<double, 6, 1> ref = sym_row_product_single_portable(V.row_ptr, V.col, V.src, V.valf, i, x.data());
+      for (int c = 0; c < 6; ++c) differ += ref[c] != y[6 * i + c];
+    }
+    CHECK(differ == 0);
+    const Eigen::MatrixXd D = Sf.to_dense();  // the rounded blocks, in double
+    CHECK((D - D.transpose()).norm() == 0.0);
+    const Eigen::VectorXd Dx = D * x;
+    CHECK((y - Dx).norm() <= 1e-13 * Dx.norm());
+    CHECK((y - Dx).norm() > 0);  // summed in another order than the dense product: a real comparison
   }
 
   TEST_CASE("sa_ppcg: the memory it owns on a pinned cloth stays below a bound relative to the matrix") {
