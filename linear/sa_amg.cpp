@@ -234,14 +234,16 @@ int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double 
 
 template <int B>
 Aggregates aggregate(const BsrView<B, B>& A, const std::vector<std::uint8_t>& strong,
-                     const std::vector<std::uint8_t>& special) {
+                     const std::vector<std::uint8_t>& special, const std::vector<int>& scan) {
   const int n = A.rows;
+  WEFT_ASSERT(scan.empty() || static_cast<int>(scan.size()) == n, "scan order has {} nodes, expected {}", scan.size(), n);
   Aggregates out;
   out.node_agg.assign(n, -1);
   std::vector<int>& agg = out.node_agg;
   std::vector<int> members, member_ptr{0};  // pass-1 members, by aggregate
   // Pass 1: a free node whose strong neighbours are all free seeds an aggregate of them all.
-  for (int i = 0; i < n; ++i) {
+  for (int t = 0; t < n; ++t) {
+    const int i = scan.empty() ? t : scan[t];
     if (special[i] || agg[i] >= 0) continue;
     bool free = true;
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1] && free; ++k)
@@ -619,7 +621,7 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
                                 std::vector<std::uint8_t>&);                                                          \
   template Aggregates aggregate<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&,                            \
-                                   const std::vector<std::uint8_t>&);                                                 \
+                                   const std::vector<std::uint8_t>&, const std::vector<int>&);                        \
   template Tentative tentative_prolongator<B>(const Aggregates&, const NullSpace&, double);                          \
   template LanczosResult lanczos<B>(const BsrView<B, B>&, const std::vector<double>&, int);                          \
   template BlockMatrix<B, 6> prolongator_pattern<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>*,          \
@@ -666,6 +668,7 @@ struct Level {
   sa::Aggregates aggs;
   int num_special = 0;
   int sheet_splits = 0;  // aggregates added by split_sheets
+  bool reordered = false;  // aggregates renumbered (aggregate_order)
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
@@ -861,7 +864,8 @@ double aggregation_threshold(const SaAmg::Params& prm) { return prm.aggregation_
 
 /// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
 template <int B>
-Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse, sa::SheetEdges sheets = {}) {
+Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse, sa::SheetEdges sheets = {},
+                   std::vector<int> scan = {}) {
   const auto& prm = ctx.prm;
   auto& T = ctx.times;
   const auto A = L.A();
@@ -886,6 +890,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   if (!(L.lambda > 0) || !std::isfinite(L.lambda)) return Status::numerical_issue;
 
   const bool last = index + 1 >= prm.max_levels || n <= prm.coarse_size;
+  std::vector<int> next_scan;  // the next level's scan order (`AggregateOrder::rcm`)
   if (!reuse) {
     L.coarsest = false;
     if (!last) {
@@ -897,12 +902,17 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       }
       {
         ScopedTimer t(T.aggregation);
-        L.aggs = sa::aggregate<B>(A, L.strong, L.special);
+        L.aggs = sa::aggregate<B>(A, L.strong, L.special, scan);
         if (prm.split_sheets) {
           if constexpr (B == 3) sheets = sa::sheet_edges(A);
           L.sheet_splits = sa::split_sheets(sheets, L.aggs);
-          sheets = sa::coarse_sheet_edges(sheets, L.aggs);
         }
+        // The next level visits its nodes in their natural order (see `sa::aggregate`).
+        if (prm.aggregate_order != AggregateOrder::natural) {
+          next_scan = sa::order_aggregates<B>(A, L.aggs, prm.aggregate_order);
+          L.reordered = !next_scan.empty();
+        }
+        if (prm.split_sheets) sheets = sa::coarse_sheet_edges(sheets, L.aggs);
       }
       if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
         // The smoothing filter's own threshold; blocks touching a special node stay
@@ -940,6 +950,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   st.aggregates = L.aggs.count;
   st.max_aggregate = L.aggs.max_size;
   st.sheet_splits = L.sheet_splits;
+  st.reordered = L.reordered;
 
   sa::Tentative tent;
   {
@@ -1061,7 +1072,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   C.f.resize(6 * nc);
   C.x.resize(6 * nc);
   C.d.resize(6 * nc);
-  return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse, std::move(sheets));
+  return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse, std::move(sheets), std::move(next_scan));
 }
 
 }  // namespace

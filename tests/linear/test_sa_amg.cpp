@@ -1167,6 +1167,122 @@ TEST_CASE("sa: the row-chunked restriction is P^T on well and randomly numbered 
   CHECK(std::abs(iterations[1] - iterations[0]) <= iterations[0] / 2 + 1);
 }
 
+namespace {
+/// Mean |a - b| over the pairs of aggregates that A couples.
+double mean_aggregate_distance(const BsrView<3, 3>& A, const sa::Aggregates& ag) {
+  std::vector<std::pair<int, int>> e;
+  for (int i = 0; i < A.rows; ++i)
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      const int a = ag.node_agg[i], b = ag.node_agg[A.col[k]];
+      if (a >= 0 && b > a) e.emplace_back(a, b);
+    }
+  std::sort(e.begin(), e.end());
+  e.erase(std::unique(e.begin(), e.end()), e.end());
+  double sum = 0;
+  for (const auto& [a, b] : e) sum += b - a;
+  return e.empty() ? 0.0 : sum / static_cast<double>(e.size());
+}
+}  // namespace
+
+TEST_CASE("sa: aggregate_order renumbers a spring-joined stack's aggregates for locality and keeps them as sets") {
+  // Layers numbered one after the other, cut into sheets: each piece is coupled by springs
+  // to the pieces above and below it, numbered a layer's worth of aggregates away. Mean
+  // distances natural / RCM measured on stacks of m x m layers: 48 / 27 (m = 21, 2 layers),
+  // 170 / 80 (41, 4), 197 / 173 (41, 8), 329 / 82 (61, 2): the fuller the stack, the less
+  // RCM gains (dropVertical's folds overlap in part: 1057 / 96 on its first level at 160k).
+  const SpringStack st = spring_stack(61, 2, 0.01);
+  const auto V = bsr_view(st.A);
+  sa::Aggregates ag = fine_aggregates(V);
+  sa::split_sheets(sa::sheet_edges(V), ag);
+  sa::Aggregates natural = ag;
+  CHECK(sa::order_aggregates<3>(V, natural, AggregateOrder::natural).empty());
+  CHECK(natural.node_agg == ag.node_agg);
+  sa::Aggregates reordered = ag;
+  const std::vector<int> label = sa::order_aggregates<3>(V, reordered, AggregateOrder::automatic);
+  REQUIRE(static_cast<int>(label.size()) == ag.count);
+  std::vector<int> sorted = label;
+  std::sort(sorted.begin(), sorted.end());
+  for (int a = 0; a < ag.count; ++a) REQUIRE(sorted[a] == a);  // a permutation
+  for (std::size_t i = 0; i < ag.node_agg.size(); ++i)
+    CHECK(reordered.node_agg[i] == (ag.node_agg[i] < 0 ? -1 : label[ag.node_agg[i]]));
+  CHECK(reordered.count == ag.count);
+  CHECK(reordered.max_size == ag.max_size);
+  const double before = mean_aggregate_distance(V, ag), after = mean_aggregate_distance(V, reordered);
+  MESSAGE("mean number distance of coupled aggregates: " << before << " natural, " << after << " RCM");
+  CHECK(after < 0.5 * before);
+  // A single sheet numbered by rows: RCM gains nothing, and `automatic` keeps the seeds' order.
+  const Prefiltered p = prefiltered_cloth(41, Tessellation::regular, Pins::two_sides);
+  const auto Vs = bsr_view(p.Ahat);
+  sa::Aggregates sheet = fine_aggregates(Vs);
+  const sa::Aggregates kept = sheet;
+  CHECK(sa::order_aggregates<3>(Vs, sheet, AggregateOrder::automatic).empty());
+  CHECK(sheet.node_agg == kept.node_agg);
+  CHECK(!sa::order_aggregates<3>(Vs, sheet, AggregateOrder::rcm).empty());
+  CHECK(mean_aggregate_distance(Vs, sheet) >= 0.5 * mean_aggregate_distance(Vs, kept));
+}
+
+TEST_CASE("sa: aggregation visiting a renumbered matrix in the original order gives the original aggregates") {
+  // What lets a level renumbered by RCM aggregate as its natural numbering would: the scan
+  // order of pass 1.
+  const support::ClothSystem sys = support::cloth_system(31, Tessellation::irregular, Pins::boundary);
+  const int n = sys.A.block_rows();
+  std::vector<int> perm(n);
+  std::iota(perm.begin(), perm.end(), 0);
+  std::mt19937 rng(3);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  const BlockCsr Ar = renumbered(sys.A, perm);
+  const sa::Aggregates a = fine_aggregates(bsr_view(sys.A));
+  std::vector<double> mu;
+  std::vector<std::uint8_t> strong, special;
+  const auto Vr = bsr_view(Ar);
+  sa::strength<3>(Vr, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(Vr, mu, 1e-2, strong, special);
+  const sa::Aggregates by_index = sa::aggregate<3>(Vr, strong, special);
+  const sa::Aggregates by_scan = sa::aggregate<3>(Vr, strong, special, perm);  // step t visits old node t
+  REQUIRE(a.count > 20);
+  CHECK(by_scan.count == a.count);
+  int same = 0, same_by_index = 0;
+  for (int i = 0; i < n; ++i) {
+    same += by_scan.node_agg[perm[i]] == a.node_agg[i];
+    same_by_index += by_index.node_agg[perm[i]] == a.node_agg[i];
+  }
+  CHECK(same == n);
+  CHECK(same_by_index < n / 2);  // not vacuous: by index the aggregates differ
+}
+
+TEST_CASE("sa: RCM-numbered aggregates keep the V-cycle SPD and the PCG iterations of the natural numbering") {
+  SaAmg::Params natural = small_coarse(20), rcm = small_coarse(20);
+  natural.split_sheets = rcm.split_sheets = true;
+  natural.aggregate_order = AggregateOrder::natural;
+  rcm.aggregate_order = AggregateOrder::rcm;
+  {
+    const SpringStack st = spring_stack(9, 3, 0.01);
+    SaAmg sa(rcm);
+    REQUIRE(sa.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+    CHECK(sa.stats().levels[0].reordered);
+    checked_spd_map(sa, st.A.rows());
+  }
+  const SpringStack st = spring_stack(41, 4, 0.01);
+  for (const bool split : {false, true}) {
+    CAPTURE(split);
+    natural.split_sheets = rcm.split_sheets = split;
+    natural.coarse_size = rcm.coarse_size = 50;
+    SaAmg a(natural), b(rcm);
+    REQUIRE(a.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+    REQUIRE(b.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+    CHECK(!a.stats().levels[0].reordered);
+    CHECK(b.stats().levels[0].reordered);
+    REQUIRE(a.levels() >= 3);
+    CHECK(b.stats().levels[1].rows == a.stats().levels[1].rows);  // the same aggregates, renumbered
+    CHECK(b.stats().levels[2].rows == a.stats().levels[2].rows);  // level 1 aggregated in its natural order
+    const PcgResult ra = pcg(st.A, st.b, a), rb = pcg(st.A, st.b, b);
+    MESSAGE("stack of 4 layers of 41 x 41: " << ra.iterations << " iterations natural, " << rb.iterations << " RCM");
+    CHECK(ra.converged);
+    CHECK(rb.converged);
+    CHECK(std::abs(ra.iterations - rb.iterations) <= 1);
+  }
+}
+
 TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
   // P = Z (I - omega D^-1 A_f) Phat applied from A (through the vertex filters, or from a
   // stored Ahat), with and without filtered smoothing: the same P up to Phat's float rounding,
