@@ -291,7 +291,7 @@ SheetEdges sheet_edges(const BsrView<3, 3>& A) {
   return edges;
 }
 
-int split_sheets(const SheetEdges& edges, Aggregates& aggs) {
+int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan) {
   std::vector<int>& agg = aggs.node_agg;
   const int n = static_cast<int>(agg.size());
   UnionFind sheets(n);
@@ -299,8 +299,10 @@ int split_sheets(const SheetEdges& edges, Aggregates& aggs) {
     if (agg[i] >= 0 && agg[i] == agg[j]) sheets.unite(i, j);
   std::vector<int> label(n, -1);
   int count = 0;
-  for (int i = 0; i < n; ++i)
+  for (int t = 0; t < n; ++t) {
+    const int i = scan.empty() ? t : scan[t];
     if (agg[i] >= 0 && label[sheets.find(i)] < 0) label[sheets.find(i)] = count++;
+  }
   const int before = aggs.count;
   std::vector<int> size(count, 0);
   for (int i = 0; i < n; ++i)
@@ -905,7 +907,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
         L.aggs = sa::aggregate<B>(A, L.strong, L.special, scan);
         if (prm.split_sheets) {
           if constexpr (B == 3) sheets = sa::sheet_edges(A);
-          L.sheet_splits = sa::split_sheets(sheets, L.aggs);
+          L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
         }
         // The next level visits its nodes in their natural order (see `sa::aggregate`).
         if (prm.aggregate_order != AggregateOrder::natural) {

@@ -187,9 +187,10 @@ using SheetEdges = std::vector<std::pair<int, int>>;
 /// The fine level's sheet couplings: the off-diagonal blocks that are not rank-one.
 SheetEdges sheet_edges(const BsrView<3, 3>& A);
 /// Splits every aggregate into its sheets, the connected components of its members under
-/// `edges` (`SaAmg::Params::split_sheets`). Aggregates are renumbered in the order of their
-/// first node. Returns how many aggregates it added.
-int split_sheets(const SheetEdges& edges, Aggregates& aggs);
+/// `edges` (`SaAmg::Params::split_sheets`). Aggregates are renumbered in the order their
+/// first node comes in `scan` (empty: by index; see `aggregate`). Returns how many
+/// aggregates it added.
+int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan = {});
 /// The next level's sheet couplings: aggregates a != b are coupled when two of their members
 /// are (sorted, without duplicates).
 SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs);
