@@ -1,5 +1,6 @@
 #include "linear/sa_amg.hpp"
 
+#include <cstdlib>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -596,6 +597,72 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
 }
 
 template <int B>
+double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, const Aggregates& aggs, double omega,
+                      int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P) {
+  using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>;
+  using Tall = Eigen::Matrix<double, B, 6, Eigen::RowMajor>;
+  const int n = A.rows;
+  const std::vector<int>& agg = aggs.node_agg;
+  // The target: (Z (I - omega D^-1 A))^degree Z K, Z zeroing the rows outside every aggregate.
+  Rows T = K;
+  for (int i = 0; i < n; ++i)
+    if (agg[i] < 0) T.middleRows<B>(B * i).setZero();
+  for (int d = 0; d < degree; ++d) {
+    Rows next(T.rows(), 6);
+#pragma omp parallel for schedule(static) if (n > parallel_rows)
+    for (int i = 0; i < n; ++i) {
+      if (agg[i] < 0) {
+        next.middleRows<B>(B * i).setZero();
+        continue;
+      }
+      Tall y = Tall::Zero();
+      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) y.noalias() += A.block(i, k) * T.middleRows<B>(B * A.col[k]);
+      const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
+      next.middleRows<B>(B * i) = T.middleRows<B>(B * i) - omega * Di * y;
+    }
+    T.swap(next);
+  }
+  const int* pr = P.row_ptr().data();
+  const int* pc = P.col().data();
+  const int nc = P.cols();
+  std::vector<Mat<6>> RtR(nc);  // each coarse node's Kc_J^T Kc_J, shared by the rows holding J
+#pragma omp parallel for schedule(static) if (nc > parallel_rows)
+  for (int J = 0; J < nc; ++J) RtR[J].noalias() = Kc.middleRows<6>(6 * J).transpose() * Kc.middleRows<6>(6 * J);
+  double worst = 0;
+#pragma omp parallel for schedule(static) reduction(max : worst) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    if (pr[i] == pr[i + 1]) continue;
+    Tall y = Tall::Zero();
+    Mat<6> G = Mat<6>::Zero();
+    for (int k = pr[i]; k < pr[i + 1]; ++k) {
+      y.noalias() += P.block(k) * Kc.middleRows<6>(6 * pc[k]);
+      G += RtR[pc[k]];
+    }
+    const Tall target = T.middleRows<B>(B * i);
+    const Tall X = target - y;
+    // X G^+: by Cholesky, or by the eigenvalues of G when it is (nearly) singular, as when
+    // the row's aggregates dropped a column.
+    Tall XG;
+    const Eigen::LLT<Mat<6>> llt(G);
+    const double dmin = llt.matrixLLT().diagonal().minCoeff(), dmax = llt.matrixLLT().diagonal().maxCoeff();
+    if (llt.info() == Eigen::Success && dmin > 1e-6 * dmax) {
+      XG = llt.solve(X.transpose()).transpose();
+    } else {
+      Eigen::SelfAdjointEigenSolver<Mat<6>> es(G);
+      const Eigen::Matrix<double, 6, 1> ev = es.eigenvalues();
+      const double cut = 1e-12 * ev.maxCoeff();
+      Eigen::Matrix<double, 6, 1> inv;
+      for (int c = 0; c < 6; ++c) inv[c] = ev[c] > cut ? 1.0 / ev[c] : 0.0;
+      XG = X * es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
+    }
+    for (int k = pr[i]; k < pr[i + 1]; ++k) P.block(k).noalias() += XG * Kc.middleRows<6>(6 * pc[k]).transpose();
+    const double t = target.norm();
+    if (t > 0) worst = std::max(worst, X.norm() / t);
+  }
+  return worst;
+}
+
+template <int B>
 std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   const int n = P.rows;
   std::vector<int> first(P.cols, n), last(P.cols, -1);
@@ -631,6 +698,8 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   template void prolongator_values<B>(const BsrView<B, B>&, const std::vector<double>&,                               \
                                       const std::vector<std::uint8_t>*, const Aggregates&, const Tentative&, double,  \
                                       BlockMatrix<B, 6>&);                                                           \
+  template double preserve_modes<B>(const BsrView<B, B>&, const std::vector<double>&, const Aggregates&, double, int, \
+                                    const NullSpace&, const NullSpace&, BlockMatrix<B, 6>&);                           \
   template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&,                  \
                                                    const std::vector<std::uint8_t>*, const Aggregates&, double,       \
                                                    const BlockMatrix<B, 6>&);                                            \
@@ -748,7 +817,9 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.prolongator_degree_levels >= 1 && p.prolongator_degree_levels <= 30, "prolongator_degree_levels",
                p.prolongator_degree_levels, "in [1, 30]")
       .require(!p.implicit_prolongator || p.prolongator_degree == 1, "prolongator_degree", p.prolongator_degree,
-               "1 when implicit_prolongator is true (the implicit P is one smoothing step)");
+               "1 when implicit_prolongator is true (the implicit P is one smoothing step)")
+      .require(!p.implicit_prolongator || !p.preserve_modes, "preserve_modes", p.preserve_modes,
+               "false when implicit_prolongator is true (the implicit P is applied from A and Phat)");
   return c;
 }
 
@@ -958,7 +1029,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   {
     ScopedTimer t(T.qr);
     tent = sa::tentative_prolongator<B>(L.aggs, K, prm.qr_tolerance);
-    K = NullSpace();  // not needed below: free it before the Galerkin product
+    if (!prm.preserve_modes) K = NullSpace();  // not needed below: free it before the Galerkin product
   }
   L.dummy = tent.dummy;
   L.deficient = tent.deficient;
@@ -979,6 +1050,10 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
+    if (prm.preserve_modes) {
+      if (strong) sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
+      K = NullSpace();
+    }
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
     PT.build(L.P.view());
     if (!L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P

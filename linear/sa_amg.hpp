@@ -240,6 +240,19 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
                                      const std::vector<std::uint8_t>* strong, const Aggregates& aggs, double omega,
                                      const BlockMatrix<B, 6>& P);
 
+/// Correct P row by row so that it maps the coarse near null space Kc to the smoothed fine
+/// one, P Kc = (Z (I - omega D^-1 A))^degree K with the whole A: the change of each row is
+/// the least-norm one within its pattern, X (Kc_r^T Kc_r)^+ Kc_r^T with Kc_r the rows of Kc
+/// on the row's columns (the constraint step of energy-minimising prolongators, Olson,
+/// Schroder and Tuminaro 2011). The filter A_f lumps a weak block into the diagonal, which
+/// keeps the translations (A_f 1 = A 1) and loses the rotations (A_f K_rot != A K_rot): on a
+/// bending-dominated sheet the smoothed rotation modes then lose the linear out-of-plane
+/// fields the coarse space needs. Returns the largest relative correction max_i |X_i| /
+/// |target_i| (0: the constraint held already).
+template <int B>
+double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, const Aggregates& aggs, double omega,
+                      int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P);
+
 /// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
 /// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
 /// one parity then share no column, and P^T r is a lock-free parallel scatter whose sums do
@@ -342,6 +355,12 @@ class SaAmg {
     /// (bench/results/table-11-1/DV-regular-accordion.md, section 5).
     bool split_sheets = false;
     AggregateOrder aggregate_order = AggregateOrder::automatic;
+    /// Correct the smoothed prolongator so that it maps the coarse near null space to the one
+    /// smoothed with the whole A (`sa::preserve_modes`): the filter's lumping keeps the
+    /// translations and loses the rotations, which carry a bending-dominated sheet's linear
+    /// out-of-plane fields. P keeps its pattern (no memory), at one product of A with six
+    /// vectors per prolongator step and a 6x6 solve per row in the setup.
+    bool preserve_modes = false;
 
     template <class V>
     void visit(V& v) {
@@ -385,6 +404,8 @@ class SaAmg {
               {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
       v.field("split_sheets", split_sheets,
               {Unit::none, Range::any(), "split each aggregate into its sheets: on the fine level the components of its couplings that are not rank-one (springs k n n^T are), on coarse levels those inherited"});
+      v.field("preserve_modes", preserve_modes,
+              {Unit::none, Range::any(), "correct the smoothed prolongator, within its pattern, to map the coarse near null space to the fine one smoothed with the whole A (the filter loses the rotations)"});
       v.choice("aggregate_order", aggregate_order, aggregate_order_names,
                "numbering of the aggregates, the next level's row order: natural (by seed), rcm (reverse Cuthill-McKee, for locality of the coarse products) or auto (rcm where it halves the mean number distance of coupled aggregates)");
     }

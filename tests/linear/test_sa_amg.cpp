@@ -585,6 +585,96 @@ TEST_CASE("sa: a second prolongator smoothing step is the one-step prolongator s
   }
 }
 
+TEST_CASE("sa: preserve_modes makes the filtered prolongator map Kc to the near null space smoothed with the whole A") {
+  // The filter lumps weak blocks into the diagonal: translations survive it, rotations do
+  // not, so the filtered P maps Kc elsewhere than unfiltered smoothing would. The correction
+  // restores (Z (I - omega D^-1 A))^degree Z K within P's pattern, and changes nothing where
+  // that holds already (unfiltered smoothing).
+  const SmoothingCase c;
+  REQUIRE(std::count(c.special.begin(), c.special.end(), 1) > 0);  // the Z rows are exercised
+  const double omega = 0.7;
+  const Eigen::MatrixXd S = Eigen::MatrixXd::Identity(3 * c.n, 3 * c.n) - omega * c.Dinvd * c.Af(false);
+  for (int degree : {1, 2}) {
+    CAPTURE(degree);
+    Eigen::MatrixXd target = c.K;
+    c.zero_special_rows(target);
+    for (int d = 0; d < degree; ++d) {
+      target = (S * target).eval();
+      c.zero_special_rows(target);
+    }
+    for (bool filtered : {false, true}) {
+      CAPTURE(filtered);
+      const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
+      BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(c.A, s, c.ag);
+      sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P);
+      if (degree == 2) P = sa::smooth_prolongator<3>(c.A, c.Dinv, s, c.ag, omega, P);
+      const Eigen::MatrixXd before = P.to_dense();
+      const double miss = (before * c.t.Kc - target).norm() / target.norm();
+      const long long nnz = P.nnz();
+      const double worst = sa::preserve_modes<3>(c.A, c.Dinv, c.ag, omega, degree, c.K, c.t.Kc, P);
+      const Eigen::MatrixXd after = P.to_dense();
+      CHECK(P.nnz() == nnz);  // the pattern is kept
+      CHECK((after * c.t.Kc - target).norm() <= 1e-12 * target.norm());
+      c.check_special_rows_empty(P);
+      if (filtered) {
+        CHECK(miss > 1e-3);  // not vacuous: the filter lost the modes
+        CHECK(worst > 1e-3);
+        // The least change: each row's correction lies in the span of its columns' Kc rows.
+        for (int i = 0; i < c.n; ++i) {
+          const int b = P.row_ptr()[i], e = P.row_ptr()[i + 1];
+          if (b == e) continue;
+          Eigen::MatrixXd Kr(6 * (e - b), 6), dP(3, 6 * (e - b));
+          for (int k = b; k < e; ++k) {
+            const int J = P.col()[k];
+            Kr.middleRows<6>(6 * (k - b)) = c.t.Kc.middleRows<6>(6 * J);
+            dP.middleCols<6>(6 * (k - b)) = after.block<3, 6>(3 * i, 6 * J) - before.block<3, 6>(3 * i, 6 * J);
+          }
+          const Eigen::MatrixXd proj = Kr * (Kr.transpose() * Kr).completeOrthogonalDecomposition().pseudoInverse() * Kr.transpose();
+          CHECK((dP - dP * proj).norm() <= 1e-10 * (dP.norm() + 1e-300));
+        }
+      } else {
+        CHECK(miss <= 1e-12);
+        CHECK(worst <= 1e-12);
+        CHECK((after - before).norm() <= 1e-12 * before.norm());
+      }
+    }
+  }
+}
+
+TEST_CASE("sa: preserve_modes keeps the V-cycle SPD and cuts the PCG iterations on an irregular sheet") {
+  Prefiltered small = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
+  SolveContext sctx{&small.sys.pins, &small.sys.x};
+  for (int degree : {1, 2}) {
+    CAPTURE(degree);
+    SaAmg::Params prm = small_coarse(8);
+    prm.prolongator_degree = degree;
+    prm.preserve_modes = true;
+    SaAmg sa(prm);
+    REQUIRE(sa.setup(small.Ahat, sctx) == Status::success);
+    REQUIRE(sa.levels() >= 3);
+    checked_spd_map(sa, small.Ahat.rows());
+  }
+  Prefiltered p = prefiltered_cloth(161, Tessellation::irregular, Pins::boundary);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  SaAmg::Params prm;
+  SaAmg plain(prm);
+  prm.preserve_modes = true;
+  SaAmg kept(prm);
+  REQUIRE(plain.setup(p.Ahat, ctx) == Status::success);
+  REQUIRE(kept.setup(p.Ahat, ctx) == Status::success);
+  // The fine P keeps its pattern; the levels below may aggregate their (different) Galerkin
+  // operators differently.
+  CHECK(kept.stats().levels[0].nnz_p == plain.stats().levels[0].nnz_p);
+  CHECK(kept.stats().levels[0].aggregates == plain.stats().levels[0].aggregates);
+  CHECK(std::abs(double(kept.info().memory_bytes) / double(plain.info().memory_bytes) - 1) < 0.02);
+  const PcgResult rp = pcg(p.Ahat, p.chat, plain), rk = pcg(p.Ahat, p.chat, kept);
+  MESSAGE("irregular 161 x 161 sheet: " << rp.iterations << " iterations, with preserve_modes " << rk.iterations);
+  CHECK(rp.converged);
+  CHECK(rk.converged);
+  CHECK(rk.iterations < rp.iterations);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.implicit_prolongator = true, .preserve_modes = true}), ConfigError);
+}
+
 TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive definite and reuse exact") {
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
