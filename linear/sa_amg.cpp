@@ -1,6 +1,5 @@
 #include "linear/sa_amg.hpp"
 
-#include <cstdlib>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
