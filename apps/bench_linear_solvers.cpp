@@ -165,6 +165,11 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "SA+PPCG aggregating at 0.25 (smoothing at theta), degree-2 prolongators on levels 0-1, W-cycle on levels 1-2: "
                                "flat iterations on the regular sheets",
                                {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat_pm", "SA+PPCG flat, modes kept",
+                               "sa_ppcg_flat with the prolongator corrected to keep the smoothed rigid modes (preserve_modes): "
+                               "flat iterations on the irregular sheets too",
+                               {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2",
+                                "preserve_modes=true"}));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

@@ -311,4 +311,31 @@ TEST_SUITE("slow") {
     }
     fs::remove_all(out);
   }
+
+  // On the irregular sheets the smoothing filter loses the rotations that carry the bending,
+  // and sa_ppcg_flat's iterations grow there too; sa_ppcg_flat_pm restores the smoothed modes
+  // in P (preserve_modes) and keeps them flat (PM-preserve-modes.md: 7 -> 14 against 7 -> 10
+  // from 10k to 160k on pinned).
+  TEST_CASE("bench: sa_ppcg_flat_pm iterations stay flat from 10k to 160k vertices on the irregular sheet where sa_ppcg_flat's grow") {
+    const fs::path out = temp_dir("bench_linear_flat_pm");
+    std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
+    std::map<std::string, double> p_blocks;            // solver -> fine P blocks (m = 100)
+    const auto results =
+        bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg_flat sa_ppcg_flat_pm", out);
+    REQUIRE(results.size() == 4);
+    for (const json& j : results) {
+      REQUIRE(j.at("failures").get<int>() == 0);
+      const std::string solver = j.at("solver");
+      const int m = j.at("case").at("m").get<int>();
+      its[solver][m] = j.at("mean_iterations").get<double>();
+      if (m == 100) p_blocks[solver] = j.at("hierarchy")[0].at("p_blocks").get<double>();
+    }
+    for (const auto& [solver, by_m] : its)
+      MESSAGE(solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400");
+    CHECK(p_blocks["sa_ppcg_flat_pm"] == p_blocks["sa_ppcg_flat"]);  // the same pattern: the correction costs no memory
+    CHECK(its["sa_ppcg_flat"][400] >= 1.8 * its["sa_ppcg_flat"][100]);  // the growth the correction removes
+    CHECK(its["sa_ppcg_flat_pm"][400] <= 1.5 * its["sa_ppcg_flat_pm"][100]);
+    CHECK(its["sa_ppcg_flat_pm"][400] < its["sa_ppcg_flat"][400]);
+    fs::remove_all(out);
+  }
 }
