@@ -265,8 +265,19 @@ TEST_SUITE("slow") {
         }
         return best;
       };
+      // Three alternating rounds, best of each path: a burst of load on a shared machine (a
+      // parallel ctest job) then falls on both paths instead of deciding one grid's
+      // comparison (2026-11-30: 6.67 against 6.58 ms at n = 73 beside another slow test,
+      // where every other grid was 1.4-2.3x faster).
       int rn = 0, rs = 0;
-      const double tn = time_path(BendingAssembly::refactored, rn), ts = time_path(BendingAssembly::per_hinge, rs);
+      double tn = 1e30, ts = 1e30;
+      for (int round = 0; round < 3; ++round) {
+        int r = 0;
+        tn = std::min(tn, time_path(BendingAssembly::refactored, r));
+        rn += r;
+        ts = std::min(ts, time_path(BendingAssembly::per_hinge, r));
+        rs += r;
+      }
       slower += tn >= ts;
       lx.push_back(std::log(static_cast<double>(n * n)));
       ly.push_back(std::log(tn));
