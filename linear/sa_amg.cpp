@@ -598,24 +598,26 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
 template <int B>
 double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, const Aggregates& aggs, double omega,
                       int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P) {
-  using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>;
-  using Tall = Eigen::Matrix<double, B, 6, Eigen::RowMajor>;
+  // Column-major: each mode is a contiguous vector, which `row_product` multiplies by A as
+  // the cycle does (through the prefilter, or from one-triangle single-precision storage).
+  using Modes = Eigen::Matrix<double, Eigen::Dynamic, 6>;
+  using Tall = Eigen::Matrix<double, B, 6>;
   const int n = A.rows;
   const std::vector<int>& agg = aggs.node_agg;
   // The target: (Z (I - omega D^-1 A))^degree Z K, Z zeroing the rows outside every aggregate.
-  Rows T = K;
+  Modes T = K;
   for (int i = 0; i < n; ++i)
     if (agg[i] < 0) T.middleRows<B>(B * i).setZero();
   for (int d = 0; d < degree; ++d) {
-    Rows next(T.rows(), 6);
+    Modes next(T.rows(), 6);
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
     for (int i = 0; i < n; ++i) {
       if (agg[i] < 0) {
         next.middleRows<B>(B * i).setZero();
         continue;
       }
-      Tall y = Tall::Zero();
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) y.noalias() += A.block(i, k) * T.middleRows<B>(B * A.col[k]);
+      Tall y;
+      for (int c = 0; c < 6; ++c) y.col(c) = row_product(A, i, T.col(c).data());
       const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
       next.middleRows<B>(B * i) = T.middleRows<B>(B * i) - omega * Di * y;
     }
