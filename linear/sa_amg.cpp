@@ -1052,7 +1052,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
     if (prm.preserve_modes) {
-      if (strong) sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
+      if (strong) st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
       K = NullSpace();
     }
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();

@@ -110,6 +110,7 @@ struct SaLevelStats {
   int restriction_chunks = 0;  ///< row chunks of the parallel restriction P_l^T r (0: implicit P_l or coarsest)
   double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
   double lambda = 0;           ///< the inflated bound used
+  double mode_correction = 0;  ///< largest relative change of a row of P by `preserve_modes` (0: off or exact)
 };
 
 /// Setup wall time split [s] (summed over levels).
