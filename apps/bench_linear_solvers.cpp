@@ -174,6 +174,11 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "SA+PPCG aggregating at 0.25, W-cycle on levels 1-2, prolongator corrected to keep the smoothed "
                                "rigid modes (preserve_modes), degree 1: about 0.7x the default's memory",
                                {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean_sheets", "SA+PPCG lean, sheets",
+                               "sa_ppcg_lean with aggregates split into sheets where springs align (split_bonded 0.01), "
+                               "strength measured within the sheets: the accordions of dropVertical within 1.5x Diag-PCG's memory",
+                               {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true",
+                                "split_sheets=true", "sheet_strength=true", "split_bonded=0.01"}));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

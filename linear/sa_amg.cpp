@@ -169,15 +169,24 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
 }
 
 template <int B>
-void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong) {
+void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong,
+                  const SheetEdges* sheets) {
   const int n = A.rows;
   strong.assign(A.nnz(), 0);
+  WEFT_ASSERT(!sheets || std::is_sorted(sheets->begin(), sheets->end()), "sheet edges must be sorted");
+  auto in_sheet = [&](int i, int j) {
+    return std::binary_search(sheets->begin(), sheets->end(), std::make_pair(std::min(i, j), std::max(i, j)));
+  };
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i) {
-    double top = 0;
-    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) top = std::max(top, mu[k]);
+    double top = 0, top_sheet = 0;
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
+      top = std::max(top, mu[k]);
+      if (sheets && A.col[k] != i && mu[k] > top_sheet && in_sheet(i, A.col[k])) top_sheet = mu[k];
+    }
+    const double ref = top_sheet > 0 ? top_sheet : top;
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
-      strong[k] = A.col[k] != i && top > 0 && mu[k] > theta * top;
+      strong[k] = A.col[k] != i && ref > 0 && mu[k] > theta * ref;
   }
   // Symmetrise: strong if strong in either row (spec 04 §4.3).
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
@@ -291,12 +300,37 @@ SheetEdges sheet_edges(const BsrView<3, 3>& A) {
   return edges;
 }
 
-int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan) {
+int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan, const BsrView<3, 3>* A,
+                 double bonded) {
   std::vector<int>& agg = aggs.node_agg;
   const int n = static_cast<int>(agg.size());
   UnionFind sheets(n);
   for (const auto& [i, j] : edges)
     if (agg[i] >= 0 && agg[i] == agg[j]) sheets.unite(i, j);
+  if (A && bonded > 0) {
+    // Sum -A_ij over the couplings between the pieces of each aggregate; keep it whole when
+    // that sum is stiff in two directions (springs at several angles bond the layers).
+    WEFT_ASSERT(A->rows == n, "{} rows for {} nodes", A->rows, n);
+    std::vector<Mat<3>> S(aggs.count, Mat<3>::Zero());
+    std::vector<int> first(aggs.count, -1);
+    for (int i = 0; i < n; ++i) {
+      if (agg[i] < 0) continue;
+      if (first[agg[i]] < 0) first[agg[i]] = i;
+      for (int k = A->row_ptr[i]; k < A->row_ptr[i + 1]; ++k) {
+        const int j = A->col[k];
+        if (j != i && agg[j] == agg[i] && sheets.find(i) != sheets.find(j)) S[agg[i]] -= A->block(i, k);
+      }
+    }
+    std::vector<std::uint8_t> whole(aggs.count, 0);
+    for (int a = 0; a < aggs.count; ++a) {
+      if (!(S[a].squaredNorm() > 0)) continue;
+      const Eigen::SelfAdjointEigenSolver<Mat<3>> es(0.5 * (S[a] + S[a].transpose()), Eigen::EigenvaluesOnly);
+      const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+      whole[a] = ev(2) > 0 && ev(1) > bonded * ev(2);
+    }
+    for (int i = 0; i < n; ++i)
+      if (agg[i] >= 0 && whole[agg[i]]) sheets.unite(i, first[agg[i]]);
+  }
   std::vector<int> label(n, -1);
   int count = 0;
   for (int t = 0; t < n; ++t) {
@@ -687,7 +721,8 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
 
 #define WEFT_SA_INSTANTIATE(B)                                                                                        \
   template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
-  template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&);   \
+  template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,    \
+                                const SheetEdges*);                                                                   \
   template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
                                 std::vector<std::uint8_t>&);                                                          \
   template Aggregates aggregate<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&,                            \
@@ -820,7 +855,10 @@ Checker SaAmg::validate(const Params& p) {
       .require(!p.implicit_prolongator || p.prolongator_degree == 1, "prolongator_degree", p.prolongator_degree,
                "1 when implicit_prolongator is true (the implicit P is one smoothing step)")
       .require(!p.implicit_prolongator || !p.preserve_modes, "preserve_modes", p.preserve_modes,
-               "false when implicit_prolongator is true (the implicit P is applied from A and Phat)");
+               "false when implicit_prolongator is true (the implicit P is applied from A and Phat)")
+      .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
+      .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
+               "false unless split_sheets is true (it measures strength within the sheets)");
   return c;
 }
 
@@ -969,17 +1007,25 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     L.coarsest = false;
     if (!last) {
       std::vector<double> mu;
+      if constexpr (B == 3)
+        if (prm.split_sheets) {
+          ScopedTimer t(T.aggregation);
+          sheets = sa::sheet_edges(A);
+        }
       {
         ScopedTimer t(T.strength);
         sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong);
+        if (prm.sheet_strength) sa::strong_flags<B>(A, mu, aggregation_threshold(prm), L.strong, &sheets);
         L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
       }
       {
         ScopedTimer t(T.aggregation);
         L.aggs = sa::aggregate<B>(A, L.strong, L.special, scan);
         if (prm.split_sheets) {
-          if constexpr (B == 3) sheets = sa::sheet_edges(A);
-          L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
+          if constexpr (B == 3)
+            L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan, &A, prm.split_bonded);
+          else
+            L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
         }
         // The next level visits its nodes in their natural order (see `sa::aggregate`).
         if (prm.aggregate_order != AggregateOrder::natural) {

@@ -136,10 +136,16 @@ namespace sa {
 template <int B>
 void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
               std::vector<std::uint8_t>& strong);
+/// The couplings along which a level's nodes form sheets, as (i, j) pairs with i < j.
+using SheetEdges = std::vector<std::pair<int, int>>;
 /// The symmetrised strong flags of `strength` from given mu: strong[k] = 1 iff mu_ij > theta
-/// max_k mu_ik or mu_ji > theta max_k mu_jk (i != j).
+/// max_k mu_ik or mu_ji > theta max_k mu_jk (i != j). With `sheets` (sorted), the maximum
+/// runs over the row's couplings within its sheets only, so that springs much stiffer than
+/// the sheet do not make its own couplings weak (`SaAmg::Params::sheet_strength`); a row
+/// without such a coupling keeps the maximum over all.
 template <int B>
-void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong);
+void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double theta, std::vector<std::uint8_t>& strong,
+                  const SheetEdges* sheets = nullptr);
 /// mu of one scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 under `measure` (B = 3 or 6).
 template <int B>
 double measure(const Eigen::Matrix<double, B, B>& M, SocMeasure measure);
@@ -183,15 +189,18 @@ std::vector<int> order_aggregates(const BsrView<B, B>& A, Aggregates& aggs, Aggr
 /// is about sigma_2 / sigma_1 once sigma_3 << sigma_2): a spring k n n^T gives round-off,
 /// a membrane block order one.
 inline constexpr double rank_one_tolerance = 1e-6;
-/// The couplings along which a level's nodes form sheets, as (i, j) pairs with i < j.
-using SheetEdges = std::vector<std::pair<int, int>>;
 /// The fine level's sheet couplings: the off-diagonal blocks that are not rank-one.
 SheetEdges sheet_edges(const BsrView<3, 3>& A);
 /// Splits every aggregate into its sheets, the connected components of its members under
 /// `edges` (`SaAmg::Params::split_sheets`). Aggregates are renumbered in the order their
 /// first node comes in `scan` (empty: by index; see `aggregate`). Returns how many
 /// aggregates it added.
-int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan = {});
+/// With `A` and `bonded` > 0 (fine level, `SaAmg::Params::split_bonded`): an aggregate whose
+/// couplings between its pieces, summed as -A_ij (k n n^T for springs), have a middle
+/// eigenvalue above `bonded` times the largest stays whole: its layers are bonded in shear
+/// and cannot slide apart.
+int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan = {},
+                 const BsrView<3, 3>* A = nullptr, double bonded = 0);
 /// The next level's sheet couplings: aggregates a != b are coupled when two of their members
 /// are (sorted, without duplicates).
 SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs);
@@ -355,6 +364,16 @@ class SaAmg {
     /// iterations at 361k with `sa_ppcg_sheets`): off by default
     /// (bench/results/table-11-1/DV-regular-accordion.md, section 5).
     bool split_sheets = false;
+    /// With `split_sheets`: aggregation's strength threshold is relative to each node's
+    /// largest coupling within its sheet, not to its springs. On dropVertical the springs
+    /// (dt^2 k against a vertex's mass) outweigh the membrane, so at aggregation_theta = 0.25
+    /// the sheets' own couplings are weak, the aggregates follow the springs across the
+    /// layers, and the split cuts them into small pieces with a heavy level 1.
+    bool sheet_strength = false;
+    /// With `split_sheets`: an aggregate whose springs between its sheets, summed as k n n^T,
+    /// have a middle eigenvalue above this fraction of the largest stays whole, since oblique
+    /// springs bond its layers in shear (0: split every aggregate).
+    double split_bonded = 0;
     AggregateOrder aggregate_order = AggregateOrder::automatic;
     /// Correct the smoothed prolongator so that it maps the coarse near null space to the one
     /// smoothed with the whole A (`sa::preserve_modes`): the filter's lumping keeps the
@@ -405,6 +424,10 @@ class SaAmg {
               {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
       v.field("split_sheets", split_sheets,
               {Unit::none, Range::any(), "split each aggregate into its sheets: on the fine level the components of its couplings that are not rank-one (springs k n n^T are), on coarse levels those inherited"});
+      v.field("sheet_strength", sheet_strength,
+              {Unit::none, Range::any(), "with split_sheets: aggregation's strength threshold relative to each node's largest coupling within its sheet, not to its springs"});
+      v.field("split_bonded", split_bonded,
+              {Unit::none, Range::closed(0, 1), "with split_sheets: keep an aggregate whole when its springs between sheets, summed as k n n^T, have a middle eigenvalue above this fraction of the largest (0: split all)"});
       v.field("preserve_modes", preserve_modes,
               {Unit::none, Range::any(), "correct the smoothed prolongator, within its pattern, to map the coarse near null space to the fine one smoothed with the whole A (the filter loses the rotations)"});
       v.choice("aggregate_order", aggregate_order, aggregate_order_names,
