@@ -161,24 +161,29 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2w", "SA+PPCG P degree 2, W",
                                "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
                                {"prolongator_degree=2", "cycle_gamma=2"}));
+  // The presets built on others add settings to them.
+  auto plus = [](std::vector<std::string> base, std::initializer_list<const char*> more) {
+    base.insert(base.end(), more.begin(), more.end());
+    return base;
+  };
+  const std::vector<std::string> flat = {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"};
+  const std::vector<std::string> lean = {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true"};
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat", "SA+PPCG flat",
                                "SA+PPCG aggregating at 0.25 (smoothing at theta), degree-2 prolongators on levels 0-1, W-cycle on levels 1-2: "
                                "flat iterations on the regular sheets",
-                               {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"}));
+                               flat));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat_pm", "SA+PPCG flat, modes kept",
                                "sa_ppcg_flat with the prolongator corrected to keep the smoothed rigid modes (preserve_modes): "
                                "flat iterations on the irregular sheets too",
-                               {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2",
-                                "preserve_modes=true"}));
+                               plus(flat, {"preserve_modes=true"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean", "SA+PPCG lean, modes kept",
                                "SA+PPCG aggregating at 0.25, W-cycle on levels 1-2, prolongator corrected to keep the smoothed "
                                "rigid modes (preserve_modes), degree 1: about 0.7x the default's memory",
-                               {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true"}));
+                               lean));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean_sheets", "SA+PPCG lean, sheets",
                                "sa_ppcg_lean with aggregates split into sheets where springs align (split_bonded 0.01), "
                                "strength measured within the sheets: the accordions of dropVertical within 1.5x Diag-PCG's memory",
-                               {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true",
-                                "split_sheets=true", "sheet_strength=true", "split_bonded=0.01"}));
+                               plus(lean, {"split_sheets=true", "sheet_strength=true", "split_bonded=0.01"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

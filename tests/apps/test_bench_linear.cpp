@@ -38,6 +38,17 @@ std::vector<json> bench_results(const std::string& args, const fs::path& out) {
   return results;
 }
 
+/// The bench's records by solver and grid size m, each case checked to have run without a
+/// failure.
+std::map<std::string, std::map<int, json>> by_solver_and_m(const std::vector<json>& results) {
+  std::map<std::string, std::map<int, json>> out;
+  for (const json& j : results) {
+    REQUIRE(j.at("failures").get<int>() == 0);
+    out[j.at("solver").get<std::string>()][j.at("case").at("m").get<int>()] = j;
+  }
+  return out;
+}
+
 }  // namespace
 
 TEST_SUITE("apps") {
@@ -323,12 +334,9 @@ TEST_SUITE("slow") {
     const auto results =
         bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg_flat sa_ppcg_flat_pm", out);
     REQUIRE(results.size() == 4);
-    for (const json& j : results) {
-      REQUIRE(j.at("failures").get<int>() == 0);
-      const std::string solver = j.at("solver");
-      const int m = j.at("case").at("m").get<int>();
-      its[solver][m] = j.at("mean_iterations").get<double>();
-      if (m == 100) p_blocks[solver] = j.at("hierarchy")[0].at("p_blocks").get<double>();
+    for (const auto& [solver, by_m] : by_solver_and_m(results)) {
+      for (const auto& [m, j] : by_m) its[solver][m] = j.at("mean_iterations").get<double>();
+      p_blocks[solver] = by_m.at(100).at("hierarchy")[0].at("p_blocks").get<double>();
     }
     for (const auto& [solver, by_m] : its)
       MESSAGE(solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400");
@@ -350,13 +358,11 @@ TEST_SUITE("slow") {
     const auto results =
         bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_lean", out);
     REQUIRE(results.size() == 4);
-    for (const json& j : results) {
-      REQUIRE(j.at("failures").get<int>() == 0);
-      const std::string solver = j.at("solver");
-      const int m = j.at("case").at("m").get<int>();
-      its[solver][m] = j.at("mean_iterations").get<double>();
-      mem[solver][m] = j.at("memory_bytes").get<double>();
-    }
+    for (const auto& [solver, by_m] : by_solver_and_m(results))
+      for (const auto& [m, j] : by_m) {
+        its[solver][m] = j.at("mean_iterations").get<double>();
+        mem[solver][m] = j.at("memory_bytes").get<double>();
+      }
     for (const auto& [solver, by_m] : its)
       MESSAGE(solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400; own memory "
                      << mem[solver][100] / 1e6 << " / " << mem[solver][400] / 1e6 << " MB");
