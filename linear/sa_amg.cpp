@@ -137,7 +137,7 @@ template double measure<6>(const Eigen::Matrix<double, 6, 6>&, SocMeasure);
 
 template <int B>
 void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
-              std::vector<std::uint8_t>& strong) {
+              std::vector<std::uint8_t>& strong, const SheetEdges* sheets) {
   const int n = A.rows, nnz = A.nnz();
   mu.assign(nnz, 0.0);
   std::vector<double> Dis(static_cast<std::size_t>(B * B) * n);
@@ -165,7 +165,7 @@ void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vec
       if (kt >= 0) mu[kt] = m;
     }
   }
-  strong_flags<B>(A, mu, theta, strong);
+  strong_flags<B>(A, mu, theta, strong, sheets);
 }
 
 template <int B>
@@ -720,7 +720,8 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
 }
 
 #define WEFT_SA_INSTANTIATE(B)                                                                                        \
-  template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&); \
+  template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&,  \
+                            const SheetEdges*);                                                                       \
   template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,    \
                                 const SheetEdges*);                                                                   \
   template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,   \
@@ -1014,8 +1015,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
         }
       {
         ScopedTimer t(T.strength);
-        sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong);
-        if (prm.sheet_strength) sa::strong_flags<B>(A, mu, aggregation_threshold(prm), L.strong, &sheets);
+        sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong, prm.sheet_strength ? &sheets : nullptr);
         L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
       }
       {

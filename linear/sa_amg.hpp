@@ -133,11 +133,11 @@ namespace sa {
 
 /// mu_ij of every stored block (0 on the diagonal) and the symmetrised strong flags:
 /// strong[k] = 1 iff mu_ij > theta max_k mu_ik or mu_ji > theta max_k mu_jk (i != j).
-template <int B>
-void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
-              std::vector<std::uint8_t>& strong);
 /// The couplings along which a level's nodes form sheets, as (i, j) pairs with i < j.
 using SheetEdges = std::vector<std::pair<int, int>>;
+template <int B>
+void strength(const BsrView<B, B>& A, double theta, SocMeasure measure, std::vector<double>& mu,
+              std::vector<std::uint8_t>& strong, const SheetEdges* sheets = nullptr);
 /// The symmetrised strong flags of `strength` from given mu: strong[k] = 1 iff mu_ij > theta
 /// max_k mu_ik or mu_ji > theta max_k mu_jk (i != j). With `sheets` (sorted), the maximum
 /// runs over the row's couplings within its sheets only, so that springs much stiffer than
