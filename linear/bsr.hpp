@@ -207,13 +207,16 @@ inline Eigen::Matrix<double, 6, 1> sym_row_product_single(const int* row_ptr, co
 #endif
 }
 
-/// acc = sum_k A_ik x_col(k) for block row i (one-triangle storage read as stored).
-template <int R, int C>
-inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, const double* x) {
-  using In = Eigen::Map<const Eigen::Matrix<double, C, 1>>;
+/// acc = sum_k A_ik x_col(k) for block row i (one-triangle storage read as stored). With
+/// M > 1, x holds one C x M row-major block per block column (M vectors at once, node by
+/// node, as a row-major NullSpace stores them): each block of A is read once for all M.
+template <int R, int C, int M = 1>
+inline BlockOf<R, M> row_product(const BsrView<R, C>& A, int i, const double* x) {
+  using In = Eigen::Map<const BlockOf<C, M>>;
   using Blk = Eigen::Map<const BlockOf<R, C>>;
   constexpr std::ptrdiff_t S = R * C;
-  Eigen::Matrix<double, R, 1> acc = Eigen::Matrix<double, R, 1>::Zero();
+  constexpr std::ptrdiff_t X = C * M;
+  BlockOf<R, M> acc = BlockOf<R, M>::Zero();
   if constexpr (R == 3 && C == 3) {
     if (!A.filter.empty()) {
       // (Ahat x)_i = S_i sum_j A_ij (S_j x_j) + sigma_i (I - S_i) x_i.
@@ -221,14 +224,14 @@ inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, co
       for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
         const int j = A.col[k], sj = F.slot[j];
         if (sj < 0)
-          acc.noalias() += Blk(A.val + S * k) * In(x + 3 * j);
+          acc.noalias() += Blk(A.val + S * k) * In(x + X * j);
         else
-          acc.noalias() += Blk(A.val + S * k) * (F.filter(sj) * In(x + 3 * j));
+          acc.noalias() += Blk(A.val + S * k) * (F.filter(sj) * In(x + X * j));
       }
       const int si = F.slot[i];
       if (si >= 0) {
-        const Eigen::Vector3d xi = In(x + 3 * i);
-        const Eigen::Vector3d Sx = F.filter(si) * xi;
+        const BlockOf<3, M> xi = In(x + X * i);
+        const BlockOf<3, M> Sx = F.filter(si) * xi;
         acc = (F.filter(si) * acc + F.sigma[si] * (xi - Sx)).eval();
       }
       return acc;
@@ -242,12 +245,12 @@ inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, co
         for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
           const int s = A.src[k];
           if (s >= 0)
-            acc.noalias() += BlkT(val + S * s).template cast<double>() * In(x + C * A.col[k]);
+            acc.noalias() += BlkT(val + S * s).template cast<double>() * In(x + X * A.col[k]);
           else
-            acc.noalias() += BlkT(val + S * ~s).transpose().template cast<double>() * In(x + C * A.col[k]);
+            acc.noalias() += BlkT(val + S * ~s).transpose().template cast<double>() * In(x + X * A.col[k]);
         }
       };
-      if constexpr (R == 6) {
+      if constexpr (R == 6 && M == 1) {
         if (A.valf) return sym_row_product_single(A.row_ptr, A.col, A.src, A.valf, i, x);
       }
       if (A.valf)
@@ -257,7 +260,7 @@ inline Eigen::Matrix<double, R, 1> row_product(const BsrView<R, C>& A, int i, co
       return acc;
     }
   }
-  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) acc.noalias() += Blk(A.val + S * k) * In(x + C * A.col[k]);
+  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) acc.noalias() += Blk(A.val + S * k) * In(x + X * A.col[k]);
   return acc;
 }
 

@@ -609,8 +609,7 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
     }
     std::sort(cols.begin(), cols.end());
   });
-  BlockMatrix<B, 6> out(n, nc, std::move(ptr), std::move(col));
-  out.values().assign(static_cast<std::size_t>(B * 6) * out.nnz(), 0.0);
+  BlockMatrix<B, 6> out(n, nc, std::move(ptr), std::move(col));  // values zero
   const int* orp = out.row_ptr().data();
   const int* oc = out.col().data();
 #pragma omp parallel if (n > parallel_rows)
@@ -632,31 +631,32 @@ BlockMatrix<B, 6> smooth_prolongator(const BsrView<B, B>& A, const std::vector<d
 template <int B>
 double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, const Aggregates& aggs, double omega,
                       int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P) {
-  // Column-major: each mode is a contiguous vector, which `row_product` multiplies by A as
-  // the cycle does (through the prefilter, or from one-triangle single-precision storage).
-  using Modes = Eigen::Matrix<double, Eigen::Dynamic, 6>;
+  // Node by node (row-major, as K): `row_product` reads each block of A once for the six
+  // modes, as the cycle reads it (through the prefilter, or from one-triangle
+  // single-precision storage). Two buffers, swapped between the steps.
   using Tall = Eigen::Matrix<double, B, 6>;
+  using Node = Eigen::Map<BlockOf<B, 6>>;
+  constexpr std::ptrdiff_t S = B * 6;
   const int n = A.rows;
   const std::vector<int>& agg = aggs.node_agg;
   // The target: (Z (I - omega D^-1 A))^degree Z K, Z zeroing the rows outside every aggregate.
-  Modes T = K;
+  NullSpace T = K, next(K.rows(), 6);
   for (int i = 0; i < n; ++i)
-    if (agg[i] < 0) T.middleRows<B>(B * i).setZero();
+    if (agg[i] < 0) Node(T.data() + S * i).setZero();
   for (int d = 0; d < degree; ++d) {
-    Modes next(T.rows(), 6);
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
     for (int i = 0; i < n; ++i) {
+      Node out(next.data() + S * i);
       if (agg[i] < 0) {
-        next.middleRows<B>(B * i).setZero();
+        out.setZero();
         continue;
       }
-      Tall y;
-      for (int c = 0; c < 6; ++c) y.col(c) = row_product(A, i, T.col(c).data());
       const Eigen::Map<const BlockOf<B, B>> Di(Dinv.data() + static_cast<std::ptrdiff_t>(B * B) * i);
-      next.middleRows<B>(B * i) = T.middleRows<B>(B * i) - omega * Di * y;
+      out = Node(T.data() + S * i) - omega * Di * row_product<B, B, 6>(A, i, T.data());
     }
     T.swap(next);
   }
+  next = NullSpace();
   const int* pr = P.row_ptr().data();
   const int* pc = P.col().data();
   const int nc = P.cols();
@@ -673,7 +673,7 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
       y.noalias() += P.block(k) * Kc.middleRows<6>(6 * pc[k]);
       G += RtR[pc[k]];
     }
-    const Tall target = T.middleRows<B>(B * i);
+    const Tall target = Node(T.data() + S * i);
     const Tall X = target - y;
     // X G^+: by Cholesky, or by the eigenvalues of G when it is (nearly) singular, as when
     // the row's aggregates dropped a column.

@@ -43,6 +43,64 @@ Solved solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c
   return out;
 }
 
+/// A random symmetric 6x6-block matrix stored by one triangle (single or double precision):
+/// a structurally symmetric pattern with row lengths 1 to 40, columns far and near, so rows
+/// mix stored and transposed blocks in every order; values over six decades.
+SymBlockMatrix<6> random_sym6(support::Rng& rng, int n, bool single) {
+  std::vector<std::vector<int>> cols(n);
+  for (int i = 0; i < n; ++i) cols[i].push_back(i);
+  for (int i = 0; i < n; ++i) {
+    const int extra = static_cast<int>(rng.uniform(0, 20));
+    for (int t = 0; t < extra; ++t) {
+      const int j = static_cast<int>(rng.uniform(0, n - 1e-9));
+      cols[i].push_back(j);
+      cols[j].push_back(i);
+    }
+  }
+  std::vector<int> ptr{0}, col;
+  for (auto& c : cols) {
+    std::sort(c.begin(), c.end());
+    c.erase(std::unique(c.begin(), c.end()), c.end());
+    col.insert(col.end(), c.begin(), c.end());
+    ptr.push_back(static_cast<int>(col.size()));
+  }
+  SymBlockMatrix<6> S(n, ptr, col, single);
+  for (int s = 0; s < S.stored_blocks(); ++s) {
+    Eigen::Matrix<double, 6, 6> b;
+    for (int e = 0; e < 36; ++e) b(e / 6, e % 6) = rng.uniform(-1, 1) * std::pow(10.0, rng.uniform(-3, 3));
+    S.store(s, b);
+  }
+  for (int i = 0; i < n; ++i) {  // a symmetric matrix's diagonal blocks are symmetric
+    const Eigen::Matrix<double, 6, 6> d = S.stored_value(S.diagonal_index(i));
+    S.store(S.diagonal_index(i), 0.5 * (d + d.transpose()));
+  }
+  return S;
+}
+
+/// Largest relative difference between row_product<B, B, 6> on node-major blocks (a row-major
+/// NullSpace) and six single-vector row products on its columns, over every block row; also
+/// whether any entry differed at all (for the guard against a vacuous comparison).
+template <int B>
+double six_at_once_vs_single(const BsrView<B, B>& V, support::Rng& rng) {
+  const int n = V.rows;
+  NullSpace X(B * n, 6);
+  for (int r = 0; r < X.rows(); ++r)
+    for (int c = 0; c < 6; ++c) X(r, c) = rng.uniform(-1, 1);
+  std::vector<Eigen::VectorXd> cols(6);
+  for (int c = 0; c < 6; ++c) cols[c] = X.col(c);
+  double worst = 0, scale = 0;
+  for (int i = 0; i < n; ++i) {
+    const BlockOf<B, 6> Y = row_product<B, B, 6>(V, i, X.data());
+    for (int c = 0; c < 6; ++c) {
+      const Eigen::Matrix<double, B, 1> y = row_product(V, i, cols[c].data());
+      worst = std::max(worst, (Y.col(c) - y).cwiseAbs().maxCoeff());
+      scale = std::max(scale, y.cwiseAbs().maxCoeff());
+    }
+  }
+  REQUIRE(scale > 0);
+  return worst / scale;
+}
+
 }  // namespace
 
 TEST_SUITE("linear") {
@@ -151,37 +209,9 @@ TEST_SUITE("linear") {
   }
 
   TEST_CASE("bsr: the single-precision one-triangle 6x6 product is the portable kernel's bit for bit and the rounded blocks' product to round-off") {
-    // A random structurally symmetric pattern (row lengths 1 to 40, columns far and near),
-    // so rows mix stored and transposed blocks in every order.
     support::Rng rng(11);
     const int n = 300;
-    std::vector<std::vector<int>> cols(n);
-    for (int i = 0; i < n; ++i) cols[i].push_back(i);
-    for (int i = 0; i < n; ++i) {
-      const int extra = static_cast<int>(rng.uniform(0, 20));
-      for (int t = 0; t < extra; ++t) {
-        const int j = static_cast<int>(rng.uniform(0, n - 1e-9));
-        cols[i].push_back(j);
-        cols[j].push_back(i);
-      }
-    }
-    std::vector<int> ptr{0}, col;
-    for (auto& c : cols) {
-      std::sort(c.begin(), c.end());
-      c.erase(std::unique(c.begin(), c.end()), c.end());
-      col.insert(col.end(), c.begin(), c.end());
-      ptr.push_back(static_cast<int>(col.size()));
-    }
-    SymBlockMatrix<6> Sf(n, ptr, col, /*single=*/true);
-    for (int s = 0; s < Sf.stored_blocks(); ++s) {
-      Eigen::Matrix<double, 6, 6> b;
-      for (int e = 0; e < 36; ++e) b(e / 6, e % 6) = rng.uniform(-1, 1) * std::pow(10.0, rng.uniform(-3, 3));
-      Sf.store(s, b);
-    }
-    for (int i = 0; i < n; ++i) {  // a symmetric matrix's diagonal blocks are symmetric
-      const Eigen::Matrix<double, 6, 6> d = Sf.stored_value(Sf.diagonal_index(i));
-      Sf.store(Sf.diagonal_index(i), 0.5 * (d + d.transpose()));
-    }
+    SymBlockMatrix<6> Sf = random_sym6(rng, n, /*single=*/true);
     const auto V = Sf.view();
     REQUIRE(V.valf != nullptr);
     int transposed = 0;
@@ -201,6 +231,25 @@ TEST_SUITE("linear") {
     const Eigen::VectorXd Dx = D * x;
     CHECK((y - Dx).norm() <= 1e-13 * Dx.norm());
     CHECK((y - Dx).norm() > 0);  // summed in another order than the dense product: a real comparison
+  }
+
+  TEST_CASE("bsr: row_product of six vectors at once is six single products through the prefilter and from one-triangle storage") {
+    // preserve_modes multiplies the six rigid modes at once (node-major) as the cycle reads A.
+    const support::ClothSystem sys = support::cloth_system(15, Tessellation::irregular, support::Pins::boundary);
+    const ConstraintSet c = with_contacts(sys.pins, 7);
+    OperatorFilter F;
+    F.build(sys.A, c);
+    REQUIRE(!F.empty());
+    BsrView<3, 3> v = bsr_view(sys.A);
+    support::Rng rng(5);
+    CHECK(six_at_once_vs_single(v, rng) <= 1e-15);
+    v.filter = F.view();
+    CHECK(six_at_once_vs_single(v, rng) <= 1e-15);
+    for (const bool single : {true, false}) {
+      const SymBlockMatrix<6> S = random_sym6(rng, 200, single);
+      CAPTURE(single);
+      CHECK(six_at_once_vs_single(S.view(), rng) <= 1e-14);
+    }
   }
 
   TEST_CASE("sa_ppcg: the memory it owns on a pinned cloth stays below a bound relative to the matrix") {
