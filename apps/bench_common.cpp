@@ -3,7 +3,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <string_view>
 #include <thread>
+
+#include <unistd.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -71,6 +74,7 @@ Json meta_record(std::string_view bench, const std::string& git, const std::stri
           {"cpu", cpu},
           {"hardware_threads", static_cast<int>(std::thread::hardware_concurrency())},
           {"lapack", linear::lapack_library()},
+          {"heap_pages", huge_pages_status()},
           {"threads", threads}};
 }
 
@@ -80,6 +84,57 @@ int worker_threads() {
 #else
   return 1;
 #endif
+}
+
+namespace {
+
+constexpr std::string_view hugetlb_tunable = "glibc.malloc.hugetlb=1";
+
+/// The kernel's THP mode: "always", "madvise", "never" or "" (unknown).
+std::string thp_mode() {
+  std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
+  std::string line;
+  if (!std::getline(f, line)) return "";
+  const auto open = line.find('['), close = line.find(']');
+  return open == std::string::npos || close == std::string::npos ? "" : line.substr(open + 1, close - open - 1);
+}
+
+bool tunable_set() {
+  const char* t = std::getenv("GLIBC_TUNABLES");
+  return t && std::string_view(t).find("glibc.malloc.hugetlb") != std::string_view::npos;
+}
+
+bool opted_out() {
+  const char* e = std::getenv("WEFT_HUGE_PAGES");
+  return e && (std::string_view(e) == "0" || std::string_view(e) == "off");
+}
+
+}  // namespace
+
+void reexec_with_huge_pages(char** argv) {
+  if (tunable_set() || opted_out() || thp_mode() != "madvise") return;
+  const char* old = std::getenv("GLIBC_TUNABLES");
+  std::string value = old && *old ? std::string(old) + ":" : std::string();
+  value += hugetlb_tunable;
+  if (setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
+  execv("/proc/self/exe", argv);
+  // Not re-executed: go on with 4 KiB pages, and say so in the reports.
+  if (old)
+    setenv("GLIBC_TUNABLES", old, 1);
+  else
+    unsetenv("GLIBC_TUNABLES");
+}
+
+std::string huge_pages_status() {
+  const std::string mode = thp_mode();
+  if (mode == "always") return "huge (THP always)";
+  if (mode == "madvise" && tunable_set()) {
+    const std::string t = std::getenv("GLIBC_TUNABLES");
+    if (t.find(hugetlb_tunable) == std::string::npos) return "4 KiB or explicit (GLIBC_TUNABLES=" + t + ")";
+    return "huge (glibc.malloc.hugetlb=1, THP madvise)";
+  }
+  if (mode == "madvise") return opted_out() ? "4 KiB (WEFT_HUGE_PAGES=0)" : "4 KiB (GLIBC_TUNABLES not applied)";
+  return mode.empty() ? "4 KiB (THP unknown)" : "4 KiB (THP " + mode + ")";
 }
 
 }  // namespace weft::app

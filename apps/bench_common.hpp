@@ -31,4 +31,18 @@ Json meta_record(std::string_view bench, const std::string& git, const std::stri
 /// OpenMP worker threads of the next parallel region (1 without OpenMP).
 int worker_threads();
 
+/// Transparent huge pages for this process's heap. Where the kernel gives huge pages only to
+/// memory that asks for them (/sys/kernel/mm/transparent_hugepage/enabled = madvise, Debian's
+/// default), sets GLIBC_TUNABLES=glibc.malloc.hugetlb=1 (glibc >= 2.35: malloc advises its
+/// large blocks) and re-executes the program, which is the only way glibc reads it. Why: SA's
+/// setup allocates its hierarchy afresh, and every 4 KiB page of it is a page fault; on the
+/// 2-vCPU EPYC VM of bench/results/table-11-1 the setup at 1M vertices took 25.2 s with 4 KiB
+/// pages and 10.3 s with huge pages, the solve 9.7 s and 7.5 s (THP.md there). Returns (doing
+/// nothing) when the tunable is already set, WEFT_HUGE_PAGES=0, the kernel mode is not
+/// madvise, or the re-execution fails.
+void reexec_with_huge_pages(char** argv);
+/// How the heap gets its pages, for the reports: "huge (glibc.malloc.hugetlb=1, THP madvise)",
+/// "huge (THP always)" or "4 KiB (...why...)".
+std::string huge_pages_status();
+
 }  // namespace weft::app

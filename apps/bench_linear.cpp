@@ -64,14 +64,16 @@ bool reset_peak_rss() {
   f << "5";
   return static_cast<bool>(f.flush());
 }
-/// A "VmXXX:  N kB" line of /proc/self/status in MB (-1: unavailable).
-double proc_status_mb(const char* key) {
-  std::ifstream f("/proc/self/status");
+/// A "Key:  N kB" line of a /proc/self file in MB (-1: unavailable).
+double proc_kb_line_mb(const char* file, const char* key) {
+  std::ifstream f(file);
   std::string line;
   while (std::getline(f, line))
     if (line.rfind(key, 0) == 0) return std::atof(line.c_str() + std::strlen(key)) / 1024.0;
   return -1;
 }
+/// A "VmXXX:  N kB" line of /proc/self/status in MB (-1: unavailable).
+double proc_status_mb(const char* key) { return proc_kb_line_mb("/proc/self/status", key); }
 double rusage_peak_mb() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -168,6 +170,7 @@ struct CaseResult {
   int max_box_contacts = 0, max_springs = 0, pattern_changes = 0, pinned = 0, projected = 0, released = 0;
   double assembly_seconds = 0, detect_seconds = 0, wall_seconds = 0;  // sums / total
   double rss_before_mb = 0, assembly_peak_mb = -1, case_peak_mb = -1, process_peak_mb = 0;
+  double assembly_huge_mb = -1;  ///< AnonHugePages after the first assembly (heap_pages in the meta record)
   double spmv_gbs = 0, spmv_mbytes = 0;
   int blocks = 0;
   std::size_t matrix_bytes = 0;  // A of the last step
@@ -229,6 +232,7 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
   for (int step = 1; step <= steps; ++step) {
     StepCounts c = sim.build_system();
     if (step == 1 && peak_reset) r.assembly_peak_mb = proc_status_mb("VmHWM:");
+    if (step == 1) r.assembly_huge_mb = proc_kb_line_mb("/proc/self/smaps_rollup", "AnonHugePages:");
     r.assembly_seconds += c.assembly_seconds;
     r.detect_seconds += c.detect_seconds;
     r.box_contacts += c.box_contacts, r.max_box_contacts = std::max(r.max_box_contacts, c.box_contacts);
@@ -482,6 +486,7 @@ int bench_linear(const BenchLinearOptions& opt) {
               {"detect_mean_s", r.detect_seconds / sd},
               {"rss_before_mb", r.rss_before_mb},
               {"assembly_peak_rss_mb", r.assembly_peak_mb},
+              {"assembly_huge_pages_mb", r.assembly_huge_mb},
               {"case_peak_rss_mb", r.case_peak_mb},
               {"process_peak_rss_mb", r.process_peak_mb},
               {"spmv_gbs", r.spmv_gbs},
@@ -567,8 +572,9 @@ int bench_linear(const BenchLinearOptions& opt) {
   std::string md;
   auto w = [&md](const std::string& s) { md += s; };
   w("# weft bench linear: thesis Table 11.1 (spec 04 §10)\n\n");
-  w(fmt::format("Hardware: {}; {} hardware threads; {} OpenMP threads used. Compiler: {} `{}`; git {}.{}\n\n", cpu, hw_threads,
-                threads, __VERSION__, build_flags(), git, opt.quick ? " **--quick: reduced run (m = 30, 2 steps).**" : ""));
+  w(fmt::format("Hardware: {}; {} hardware threads; {} OpenMP threads used; heap pages {}. Compiler: {} `{}`; git {}.{}\n\n", cpu,
+                hw_threads, threads, huge_pages_status(), __VERSION__, build_flags(), git,
+                opt.quick ? " **--quick: reduced run (m = 30, 2 steps).**" : ""));
   w(fmt::format("Direct solver: **{}**{} -- a stand-in for the thesis's MKL PARDISO, which is faster (PARDISO is not available "
                 "here), so the 'vs direct' speedups are not the thesis's 'vs PARDISO'.\n\n",
                 direct_label, cholmod ? "" : " (CHOLMOD not compiled in: -DWEFT_WITH_CHOLMOD=ON)"));

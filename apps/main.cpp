@@ -12,6 +12,7 @@
 
 #include "apps/ablate.hpp"
 #include "apps/bench_bending.hpp"
+#include "apps/bench_common.hpp"
 #include "apps/bench_contact.hpp"
 #include "apps/bench_hair.hpp"
 #include "apps/bench_linear.hpp"
@@ -24,6 +25,7 @@
 
 int main(int argc, char** argv) {
   using namespace weft;
+  app::reexec_with_huge_pages(argv);  // returns unless it re-executes this program
   CLI::App app{"weft: cloth and hair simulation with frictional contact, composed from compile-time policies"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("weft ") + version() + ", built from " + build_commit());

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
@@ -168,6 +169,49 @@ TEST_SUITE("apps") {
     for (const char* s : {"## Multigrid hierarchies", "| pinned | regular | 961 | SA+PPCG | 1 |", "galerkin"})
       CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
     fs::remove_all(dir);
+  }
+
+  TEST_CASE("bench: weft runs on huge pages where the kernel gives them on request and WEFT_HUGE_PAGES=0 keeps 4 KiB pages") {
+    std::string mode;
+    {
+      std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
+      std::string line;
+      if (std::getline(f, line) && line.find('[') != std::string::npos)
+        mode = line.substr(line.find('[') + 1, line.find(']') - line.find('[') - 1);
+    }
+    const fs::path out = temp_dir("bench_linear_huge_" + std::to_string(getpid()));
+    // The heap's pages as the bench reports them (its meta record) and the huge pages it held
+    // after the first assembly (a 10k-vertex matrix: 10 MB).
+    auto run = [&](const std::string& prefix, const std::string& name) {
+      const fs::path dir = out / name;
+      const Result r = run_weft("bench linear --examples pinned --tessellations regular --sizes 100 --steps 2 --solvers diag_pcg --threads 1 --out " +
+                                    dir.string(),
+                                prefix);
+      CAPTURE(r.output);
+      REQUIRE(r.code == 0);
+      const std::vector<json> records = read_jsonl(dir / "bench_linear.jsonl");
+      REQUIRE(records.size() == 2);
+      return std::pair{records[0].at("heap_pages").get<std::string>(), records[1].at("case").at("assembly_huge_pages_mb").get<double>()};
+    };
+    const auto [on, on_mb] = run("env -u GLIBC_TUNABLES", "default");
+    const auto [off, off_mb] = run("env -u GLIBC_TUNABLES WEFT_HUGE_PAGES=0", "off");
+    const auto [kept, kept_mb] = run("env GLIBC_TUNABLES=glibc.malloc.check=0", "kept");
+    MESSAGE("THP mode '" << mode << "': default '" << on << "' (" << on_mb << " MB of huge pages), WEFT_HUGE_PAGES=0 '" << off << "' ("
+                         << off_mb << " MB), with another tunable '" << kept << "' (" << kept_mb << " MB)");
+    if (mode == "madvise") {
+      CHECK(on.rfind("huge (glibc.malloc.hugetlb=1", 0) == 0);
+      CHECK(kept.rfind("huge (glibc.malloc.hugetlb=1", 0) == 0);  // appended to the tunables already set
+      CHECK(off == "4 KiB (WEFT_HUGE_PAGES=0)");
+      CHECK(on_mb >= 8);  // the matrix at least
+      CHECK(kept_mb >= 8);
+      CHECK(off_mb < on_mb);
+    } else if (mode == "always") {
+      CHECK(on == "huge (THP always)");
+      CHECK(off == on);
+    } else {
+      CHECK(on.rfind("4 KiB", 0) == 0);
+    }
+    fs::remove_all(out);
   }
 
   TEST_CASE("bench: weft bench linear rejects unknown examples and solvers") {
