@@ -36,8 +36,8 @@ int worker_threads();
 /// default), sets GLIBC_TUNABLES=glibc.malloc.hugetlb=1 (glibc >= 2.35: malloc advises its
 /// large blocks) and re-executes the program, which is the only way glibc reads it. Why: SA's
 /// setup allocates its hierarchy afresh, and every 4 KiB page of it is a page fault; on the
-/// 2-vCPU EPYC VM of bench/results/table-11-1 the setup at 1M vertices took 25.2 s with 4 KiB
-/// pages and 10.3 s with huge pages, the solve 9.7 s and 7.5 s (THP.md there). Returns (doing
+/// 2-vCPU EPYC VM of bench/results/table-11-1 the setup at 1M vertices took 22.8 s with 4 KiB
+/// pages and 10.1 s with huge pages, the solve 8.0 s and 7.0 s (THP-lean2.md there). Returns (doing
 /// nothing) when the tunable is already set, WEFT_HUGE_PAGES=0, the kernel mode is not
 /// madvise, or the re-execution fails.
 void reexec_with_huge_pages(char** argv);
