@@ -168,6 +168,7 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   };
   const std::vector<std::string> flat = {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"};
   const std::vector<std::string> lean = {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true"};
+  const std::vector<std::string> lean_sheets = plus(lean, {"split_sheets=true", "sheet_strength=true", "split_bonded=0.01"});
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat", "SA+PPCG flat",
                                "SA+PPCG aggregating at 0.25 (smoothing at theta), degree-2 prolongators on levels 0-1, W-cycle on levels 1-2: "
                                "flat iterations on the regular sheets",
@@ -183,12 +184,11 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean_sheets", "SA+PPCG lean, sheets",
                                "sa_ppcg_lean with aggregates split into sheets where springs align (split_bonded 0.01), "
                                "strength measured within the sheets: the accordions of dropVertical within 1.5x Diag-PCG's memory",
-                               plus(lean, {"split_sheets=true", "sheet_strength=true", "split_bonded=0.01"})));
+                               lean_sheets));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2_sheets", "SA+PPCG lean2, sheets",
                                "sa_ppcg_lean_sheets with two prolongator smoothing steps on the fine level only "
                                "(prolongator_degree 2, prolongator_degree_levels 1): the sheets' bending at 1M vertices",
-                               plus(lean, {"split_sheets=true", "sheet_strength=true", "split_bonded=0.01", "prolongator_degree=2",
-                                           "prolongator_degree_levels=1"})));
+                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",
