@@ -189,6 +189,11 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "sa_ppcg_lean_sheets with two prolongator smoothing steps on the fine level only "
                                "(prolongator_degree 2, prolongator_degree_levels 1): the sheets' bending at 1M vertices",
                                plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1"})));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2t_sheets", "SA+PPCG lean2t, sheets",
+                               "sa_ppcg_lean2_sheets with each prolongator row truncated at 0.05 of its largest block and the "
+                               "rigid modes repaired (prolongator_truncation 0.05): a narrower degree-2 P and level 1 on "
+                               "dropVertical's accordion, pinned's growth to 1M kept within 2x",
+                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1", "prolongator_truncation=0.05"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

@@ -698,6 +698,26 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
 }
 
 template <int B>
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction) {
+  const int n = P.rows();
+  const int* pr = P.row_ptr().data();
+  long long dropped = 0;
+#pragma omp parallel for schedule(static) reduction(+ : dropped) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    double top = 0;
+    for (int k = pr[i]; k < pr[i + 1]; ++k) top = std::max(top, P.block(k).squaredNorm());
+    const double cut = fraction * fraction * top;  // compared as squares
+    for (int k = pr[i]; k < pr[i + 1]; ++k)
+      if (P.block(k).squaredNorm() < cut) {
+        P.block(k).setZero();
+        ++dropped;
+      }
+  }
+  if (dropped > 0) P.prune_zero_blocks();
+  return dropped;
+}
+
+template <int B>
 std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   const int n = P.rows;
   std::vector<int> first(P.cols, n), last(P.cols, -1);
@@ -740,6 +760,7 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&,                  \
                                                    const std::vector<std::uint8_t>*, const Aggregates&, double,       \
                                                    const BlockMatrix<B, 6>&);                                            \
+  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double);                                            \
   template std::vector<int> restriction_chunks<B>(const BsrView<B, 6>&, int);
 WEFT_SA_INSTANTIATE(3)
 WEFT_SA_INSTANTIATE(6)
@@ -857,6 +878,12 @@ Checker SaAmg::validate(const Params& p) {
                "1 when implicit_prolongator is true (the implicit P is one smoothing step)")
       .require(!p.implicit_prolongator || !p.preserve_modes, "preserve_modes", p.preserve_modes,
                "false when implicit_prolongator is true (the implicit P is applied from A and Phat)")
+      .require(p.prolongator_truncation >= 0 && p.prolongator_truncation < 1, "prolongator_truncation",
+               p.prolongator_truncation, "in [0, 1)")
+      .require(p.prolongator_truncation == 0 || p.preserve_modes, "prolongator_truncation", p.prolongator_truncation,
+               "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
+      .require(p.prolongator_truncation == 0 || p.reuse == SaReuse::none, "prolongator_truncation",
+               p.prolongator_truncation, "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)")
       .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
       .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
                "false unless split_sheets is true (it measures strength within the sheets)");
@@ -1097,8 +1124,9 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
+    if (prm.prolongator_truncation > 0) st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation);
     if (prm.preserve_modes) {
-      if (strong) st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
+      if (strong || st.truncated > 0) st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
       K = NullSpace();
     }
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();

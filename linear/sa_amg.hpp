@@ -111,6 +111,7 @@ struct SaLevelStats {
   double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
   double lambda = 0;           ///< the inflated bound used
   double mode_correction = 0;  ///< largest relative change of a row of P by `preserve_modes` (0: off or exact)
+  long long truncated = 0;     ///< blocks of P_l dropped by `prolongator_truncation`
 };
 
 /// Setup wall time split [s] (summed over levels).
@@ -263,6 +264,11 @@ template <int B>
 double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, const Aggregates& aggs, double omega,
                       int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P);
 
+/// Zeroes and removes the blocks of each row of P whose Frobenius norm is below `fraction`
+/// times the row's largest; returns how many. A row keeps at least its largest block.
+template <int B>
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction);
+
 /// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
 /// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
 /// one parity then share no column, and P^T r is a lock-free parallel scatter whose sums do
@@ -321,6 +327,14 @@ class SaAmg {
     /// them flat, at a wider P and denser coarse operators (more memory and setup).
     int prolongator_degree = 1;
     int prolongator_degree_levels = 2;
+    /// Drop from each row of a smoothed prolongator the blocks whose Frobenius norm is below
+    /// this fraction of the row's largest (0: keep all), before the Galerkin product. Each
+    /// smoothing step widens P by A's stencil, and the coarse operator's fill grows with P's
+    /// width; the dropped blocks carry a small share of the row. `preserve_modes` (required)
+    /// then corrects the kept blocks so that P still maps the coarse near null space to the
+    /// fine one smoothed with the whole A (the truncation-and-repair of classical AMG's
+    /// interpolation, Stuben 2001, with SA's rigid modes in place of the constant).
+    double prolongator_truncation = 0;
     SaReuse reuse = SaReuse::none;
     /// Storage of the prolongators' values (see `ValueStorage`). Single precision and fixed16
     /// left SA+PPCG's iterations unchanged on every example at 10k-361k (and 1M pinned)
@@ -411,6 +425,8 @@ class SaAmg {
               {Unit::none, Range::closed(1, 3), "damped Jacobi steps of the prolongator smoother on the first prolongator_degree_levels levels"});
       v.field("prolongator_degree_levels", prolongator_degree_levels,
               {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
+      v.field("prolongator_truncation", prolongator_truncation,
+              {Unit::none, Range::closed_open(0, 1), "drop the blocks of each prolongator row below this fraction of the row's largest (Frobenius norm); preserve_modes then repairs the rigid modes (0: keep all)"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
       v.choice("prolongator_storage", prolongator_storage, value_storage_names,
                "storage of the prolongators' values: double, single (float) or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");

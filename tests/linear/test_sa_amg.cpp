@@ -759,6 +759,100 @@ TEST_CASE("sa: preserve_modes keeps the V-cycle SPD and cuts the PCG iterations 
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.implicit_prolongator = true, .preserve_modes = true}), ConfigError);
 }
 
+TEST_CASE("sa: truncation drops the small blocks of each prolongator row and preserve_modes repairs the rigid modes") {
+  const SmoothingCase c;
+  const double omega = 0.7;
+  const Eigen::MatrixXd S = Eigen::MatrixXd::Identity(3 * c.n, 3 * c.n) - omega * c.Dinvd * c.Af(false);
+  Eigen::MatrixXd target = c.K;
+  c.zero_special_rows(target);
+  for (int d = 0; d < 2; ++d) {
+    target = (S * target).eval();
+    c.zero_special_rows(target);
+  }
+  for (bool filtered : {false, true}) {
+    CAPTURE(filtered);
+    const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
+    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(c.A, s, c.ag);
+    sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P);
+    P = sa::smooth_prolongator<3>(c.A, c.Dinv, s, c.ag, omega, P);
+    const BlockMatrix<3, 6> full = P;
+    const double fraction = 0.2;
+    const long long dropped = sa::truncate_prolongator<3>(P, fraction);
+    CHECK(dropped == full.nnz() - P.nnz());
+    REQUIRE(dropped > full.nnz() / 10);  // not vacuous: a degree-2 P has many small blocks
+    // Row by row: the kept blocks are those of the full row at or above the cut, unchanged.
+    for (int i = 0; i < c.n; ++i) {
+      double top = 0;
+      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) top = std::max(top, full.block(k).norm());
+      int kept = 0;
+      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) {
+        if (full.block(k).norm() < fraction * top * (1 - 1e-12)) continue;
+        const int q = P.row_ptr()[i] + kept++;
+        REQUIRE(q < P.row_ptr()[i + 1]);
+        CHECK(P.col()[q] == full.col()[k]);
+        CHECK((P.block(q) - full.block(k)).norm() == 0);
+      }
+      CHECK(P.row_ptr()[i + 1] - P.row_ptr()[i] == kept);
+      CHECK((kept > 0) == (full.row_ptr()[i + 1] > full.row_ptr()[i]));  // a row keeps its largest block
+    }
+    // The dropped blocks lose the modes; the repair restores them within the kept pattern.
+    const double miss = (P.to_dense() * c.t.Kc - target).norm() / target.norm();
+    CHECK(miss > 1e-3);
+    const long long nnz = P.nnz();
+    sa::preserve_modes<3>(c.A, c.Dinv, c.ag, omega, 2, c.K, c.t.Kc, P);
+    CHECK(P.nnz() == nnz);
+    CHECK((P.to_dense() * c.t.Kc - target).norm() <= 1e-12 * target.norm());
+    c.check_special_rows_empty(P);
+  }
+}
+
+TEST_CASE("sa: prolongator truncation keeps the V-cycle SPD and shrinks P and the coarse operators at bounded iterations") {
+  Prefiltered small = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
+  SolveContext sctx{&small.sys.pins, &small.sys.x};
+  SaAmg::Params prm = small_coarse(8);
+  prm.prolongator_degree = 2;
+  prm.preserve_modes = true;
+  prm.prolongator_truncation = 0.1;
+  SaAmg cut(prm);
+  REQUIRE(cut.setup(small.Ahat, sctx) == Status::success);
+  REQUIRE(cut.levels() >= 3);
+  CHECK(cut.stats().levels[0].truncated > 0);
+  checked_spd_map(cut, small.Ahat.rows());
+
+  Prefiltered p = prefiltered_cloth(121, Tessellation::irregular, Pins::boundary);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  SaAmg::Params base;
+  base.prolongator_degree = 2;
+  base.prolongator_degree_levels = 1;
+  base.preserve_modes = true;
+  SaAmg whole(base);
+  base.prolongator_truncation = 0.1;
+  SaAmg trunc(base);
+  REQUIRE(whole.setup(p.Ahat, ctx) == Status::success);
+  REQUIRE(trunc.setup(p.Ahat, ctx) == Status::success);
+  const SaLevelStats &w0 = whole.stats().levels[0], &t0 = trunc.stats().levels[0];
+  CHECK(w0.truncated == 0);
+  CHECK(t0.truncated == w0.nnz_p - t0.nnz_p);  // the same aggregates, fewer blocks
+  CHECK(t0.aggregates == w0.aggregates);
+  CHECK(t0.nnz_p < 0.9 * w0.nnz_p);
+  CHECK(trunc.stats().levels[1].nnz_blocks < whole.stats().levels[1].nnz_blocks);
+  CHECK(trunc.info().memory_bytes < whole.info().memory_bytes);
+  const PcgResult rw = pcg(p.Ahat, p.chat, whole), rt = pcg(p.Ahat, p.chat, trunc);
+  MESSAGE("irregular 121 x 121 sheet, degree 2 on level 0: P " << w0.nnz_p << " -> " << t0.nnz_p << " blocks, level 1 "
+          << whole.stats().levels[1].nnz_blocks << " -> " << trunc.stats().levels[1].nnz_blocks << " blocks, memory "
+          << whole.info().memory_bytes << " -> " << trunc.info().memory_bytes << " bytes, " << rw.iterations << " -> "
+          << rt.iterations << " iterations");
+  CHECK(rw.converged);
+  CHECK(rt.converged);
+  CHECK(rt.iterations <= rw.iterations + 2);
+  // Without the repair the dropped blocks lose the modes; with reuse the kept blocks, and so
+  // the patterns, could change from one setup to the next.
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 0.1}), ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 0.1, .reuse = SaReuse::aggregates, .preserve_modes = true}),
+                  ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 1, .preserve_modes = true}), ConfigError);
+}
+
 TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive definite and reuse exact") {
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
