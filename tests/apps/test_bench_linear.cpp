@@ -419,4 +419,33 @@ TEST_SUITE("slow") {
     }
     fs::remove_all(out);
   }
+  // dropVertical's accordion: lean2_sheets' degree-2 fine P is wide on the split's small
+  // aggregates (5.5 blocks per row) and level 1 dense; truncating P's rows at 0.05 of their
+  // largest block, with the rigid modes repaired, narrows both at the same iterations
+  // (TRUNC-lean2t.md: 1.68x -> 1.51x Diag-PCG's memory at 26k, 26.6 -> 26.9 iterations).
+  TEST_CASE("bench: sa_ppcg_lean2t_sheets narrows dropVertical's degree-2 prolongator and level 1 at lean2_sheets' iterations") {
+    const fs::path out = temp_dir("bench_linear_lean2t");
+    const auto results = bench_results(
+        "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers sa_ppcg_lean2_sheets sa_ppcg_lean2t_sheets", out);
+    REQUIRE(results.size() == 2);
+    std::map<std::string, json> by;
+    for (const json& j : results) {
+      REQUIRE(j.at("failures").get<int>() == 0);
+      by[j.at("solver").get<std::string>()] = j;
+    }
+    const json &whole = by.at("sa_ppcg_lean2_sheets"), &cut = by.at("sa_ppcg_lean2t_sheets");
+    const auto level = [](const json& j, int l, const char* key) { return j.at("hierarchy")[l].at(key).get<double>(); };
+    MESSAGE("lean2_sheets / lean2t_sheets: " << whole.at("mean_iterations").get<double>() << " / " << cut.at("mean_iterations").get<double>()
+                                             << " iterations, fine P " << level(whole, 0, "p_blocks") << " / " << level(cut, 0, "p_blocks")
+                                             << " blocks, level 1 " << level(whole, 1, "blocks") << " / " << level(cut, 1, "blocks")
+                                             << " blocks, own memory " << whole.at("memory_bytes").get<double>() / 1e6 << " / "
+                                             << cut.at("memory_bytes").get<double>() / 1e6 << " MB");
+    CHECK(level(whole, 0, "p_truncated") == 0);
+    CHECK(level(cut, 0, "p_truncated") == level(whole, 0, "p_blocks") - level(cut, 0, "p_blocks"));  // same aggregates
+    CHECK(level(cut, 0, "p_blocks") < 0.8 * level(whole, 0, "p_blocks"));
+    CHECK(level(cut, 1, "blocks") < 0.9 * level(whole, 1, "blocks"));
+    CHECK(cut.at("memory_bytes").get<double>() < 0.9 * whole.at("memory_bytes").get<double>());
+    CHECK(cut.at("mean_iterations").get<double>() <= whole.at("mean_iterations").get<double>() + 2);
+    fs::remove_all(out);
+  }
 }
