@@ -614,6 +614,24 @@ struct SmoothingCase {
     for (int i = 0; i < n; ++i)
       if (special[i]) M.middleRows<3>(3 * i).setZero();
   }
+  /// (Z (I - omega D^-1 A))^degree Z K: the near null space smoothed with the whole A.
+  Eigen::MatrixXd smoothed_modes(double omega, int degree) const {
+    const Eigen::MatrixXd S = Eigen::MatrixXd::Identity(3 * n, 3 * n) - omega * Dinvd * Af(false);
+    Eigen::MatrixXd target = K;
+    zero_special_rows(target);
+    for (int d = 0; d < degree; ++d) {
+      target = (S * target).eval();
+      zero_special_rows(target);
+    }
+    return target;
+  }
+  /// The prolongator smoothed `degree` times, with the filter if `s` is given.
+  BlockMatrix<3, 6> smoothed_prolongator(const std::vector<std::uint8_t>* s, double omega, int degree) const {
+    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(A, s, ag);
+    sa::prolongator_values<3>(A, Dinv, s, ag, t, omega, P);
+    for (int d = 1; d < degree; ++d) P = sa::smooth_prolongator<3>(A, Dinv, s, ag, omega, P);
+    return P;
+  }
   template <int R>
   void check_special_rows_empty(const BlockMatrix<R, 6>& P) const {
     for (int i = 0; i < n; ++i)
@@ -668,21 +686,12 @@ TEST_CASE("sa: preserve_modes makes the filtered prolongator map Kc to the near 
   const SmoothingCase c;
   REQUIRE(std::count(c.special.begin(), c.special.end(), 1) > 0);  // the Z rows are exercised
   const double omega = 0.7;
-  const Eigen::MatrixXd S = Eigen::MatrixXd::Identity(3 * c.n, 3 * c.n) - omega * c.Dinvd * c.Af(false);
   for (int degree : {1, 2}) {
     CAPTURE(degree);
-    Eigen::MatrixXd target = c.K;
-    c.zero_special_rows(target);
-    for (int d = 0; d < degree; ++d) {
-      target = (S * target).eval();
-      c.zero_special_rows(target);
-    }
+    const Eigen::MatrixXd target = c.smoothed_modes(omega, degree);
     for (bool filtered : {false, true}) {
       CAPTURE(filtered);
-      const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
-      BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(c.A, s, c.ag);
-      sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P);
-      if (degree == 2) P = sa::smooth_prolongator<3>(c.A, c.Dinv, s, c.ag, omega, P);
+      BlockMatrix<3, 6> P = c.smoothed_prolongator(filtered ? &c.strong : nullptr, omega, degree);
       const Eigen::MatrixXd before = P.to_dense();
       const double miss = (before * c.t.Kc - target).norm() / target.norm();
       const long long nnz = P.nnz();
@@ -762,19 +771,10 @@ TEST_CASE("sa: preserve_modes keeps the V-cycle SPD and cuts the PCG iterations 
 TEST_CASE("sa: truncation drops the small blocks of each prolongator row and preserve_modes repairs the rigid modes") {
   const SmoothingCase c;
   const double omega = 0.7;
-  const Eigen::MatrixXd S = Eigen::MatrixXd::Identity(3 * c.n, 3 * c.n) - omega * c.Dinvd * c.Af(false);
-  Eigen::MatrixXd target = c.K;
-  c.zero_special_rows(target);
-  for (int d = 0; d < 2; ++d) {
-    target = (S * target).eval();
-    c.zero_special_rows(target);
-  }
+  const Eigen::MatrixXd target = c.smoothed_modes(omega, 2);
   for (bool filtered : {false, true}) {
     CAPTURE(filtered);
-    const std::vector<std::uint8_t>* s = filtered ? &c.strong : nullptr;
-    BlockMatrix<3, 6> P = sa::prolongator_pattern<3>(c.A, s, c.ag);
-    sa::prolongator_values<3>(c.A, c.Dinv, s, c.ag, c.t, omega, P);
-    P = sa::smooth_prolongator<3>(c.A, c.Dinv, s, c.ag, omega, P);
+    BlockMatrix<3, 6> P = c.smoothed_prolongator(filtered ? &c.strong : nullptr, omega, 2);
     const BlockMatrix<3, 6> full = P;
     const double fraction = 0.2;
     const long long dropped = sa::truncate_prolongator<3>(P, fraction);
