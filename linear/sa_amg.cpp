@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <numeric>
 #include <type_traits>
 #include <utility>
@@ -698,7 +699,7 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
 }
 
 template <int B>
-long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction) {
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_blocks) {
   const int n = P.rows();
   const int* pr = P.row_ptr().data();
   long long dropped = 0;
@@ -706,7 +707,14 @@ long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction) {
   for (int i = 0; i < n; ++i) {
     double top = 0;
     for (int k = pr[i]; k < pr[i + 1]; ++k) top = std::max(top, P.block(k).squaredNorm());
-    const double cut = fraction * fraction * top;  // compared as squares
+    double cut = fraction * fraction * top;  // compared as squares
+    if (max_blocks > 0 && pr[i + 1] - pr[i] > max_blocks) {
+      // The max_blocks-th largest kept norm: blocks below it go as well (ties stay).
+      std::vector<double> norms;
+      for (int k = pr[i]; k < pr[i + 1]; ++k) norms.push_back(P.block(k).squaredNorm());
+      std::nth_element(norms.begin(), norms.begin() + (max_blocks - 1), norms.end(), std::greater<>());
+      cut = std::max(cut, norms[max_blocks - 1]);
+    }
     for (int k = pr[i]; k < pr[i + 1]; ++k)
       if (P.block(k).squaredNorm() < cut) {
         P.block(k).setZero();
@@ -760,7 +768,7 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&,                  \
                                                    const std::vector<std::uint8_t>*, const Aggregates&, double,       \
                                                    const BlockMatrix<B, 6>&);                                            \
-  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double);                                            \
+  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double, int);                                               \
   template std::vector<int> restriction_chunks<B>(const BsrView<B, 6>&, int);
 WEFT_SA_INSTANTIATE(3)
 WEFT_SA_INSTANTIATE(6)
@@ -884,6 +892,11 @@ Checker SaAmg::validate(const Params& p) {
                "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
       .require(p.prolongator_truncation == 0 || p.reuse == SaReuse::none, "prolongator_truncation",
                p.prolongator_truncation, "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)")
+      .require(p.prolongator_max_blocks >= 0, "prolongator_max_blocks", p.prolongator_max_blocks, ">= 0")
+      .require(p.prolongator_max_blocks == 0 || p.preserve_modes, "prolongator_max_blocks", p.prolongator_max_blocks,
+               "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
+      .require(p.prolongator_max_blocks == 0 || p.reuse == SaReuse::none, "prolongator_max_blocks",
+               p.prolongator_max_blocks, "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)")
       .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
       .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
                "false unless split_sheets is true (it measures strength within the sheets)");
@@ -1124,7 +1137,8 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
-    if (prm.prolongator_truncation > 0) st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation);
+    if (prm.prolongator_truncation > 0 || prm.prolongator_max_blocks > 0)
+      st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation, prm.prolongator_max_blocks);
     if (prm.preserve_modes) {
       if (strong || st.truncated > 0) st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
       K = NullSpace();

@@ -265,9 +265,10 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
                       int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P);
 
 /// Zeroes and removes the blocks of each row of P whose Frobenius norm is below `fraction`
-/// times the row's largest; returns how many. A row keeps at least its largest block.
+/// times the row's largest, and with `max_blocks` > 0 those below the row's max_blocks-th
+/// largest (ties kept); returns how many. A row keeps at least its largest block.
 template <int B>
-long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction);
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_blocks = 0);
 
 /// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
 /// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
@@ -335,6 +336,10 @@ class SaAmg {
     /// fine one smoothed with the whole A (the truncation-and-repair of classical AMG's
     /// interpolation, Stuben 2001, with SA's rigid modes in place of the constant).
     double prolongator_truncation = 0;
+    /// Keep at most this many blocks (the largest) in each row of a smoothed prolongator
+    /// (0: no cap), with the same repair as `prolongator_truncation`: a cap narrows the wide
+    /// rows only, where a relative threshold cuts every row alike.
+    int prolongator_max_blocks = 0;
     SaReuse reuse = SaReuse::none;
     /// Storage of the prolongators' values (see `ValueStorage`). Single precision and fixed16
     /// left SA+PPCG's iterations unchanged on every example at 10k-361k (and 1M pinned)
@@ -427,6 +432,8 @@ class SaAmg {
               {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
       v.field("prolongator_truncation", prolongator_truncation,
               {Unit::none, Range::closed_open(0, 1), "drop the blocks of each prolongator row below this fraction of the row's largest (Frobenius norm); preserve_modes then repairs the rigid modes (0: keep all)"});
+      v.field("prolongator_max_blocks", prolongator_max_blocks,
+              {Unit::none, Range::ge(0), "keep at most this many blocks, the largest, in each prolongator row; preserve_modes then repairs the rigid modes (0: no cap)"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
       v.choice("prolongator_storage", prolongator_storage, value_storage_names,
                "storage of the prolongators' values: double, single (float) or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");

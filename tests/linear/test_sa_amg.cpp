@@ -803,6 +803,33 @@ TEST_CASE("sa: truncation drops the small blocks of each prolongator row and pre
     CHECK(P.nnz() == nnz);
     CHECK((P.to_dense() * c.t.Kc - target).norm() <= 1e-12 * target.norm());
     c.check_special_rows_empty(P);
+
+    // A cap on the blocks per row keeps each row's largest blocks and leaves narrow rows alone.
+    const int cap = 3;
+    BlockMatrix<3, 6> Q = full;
+    const long long capped = sa::truncate_prolongator<3>(Q, 0.0, cap);
+    CHECK(capped == full.nnz() - Q.nnz());
+    int wide = 0;
+    for (int i = 0; i < c.n; ++i) {
+      const int width = full.row_ptr()[i + 1] - full.row_ptr()[i];
+      wide += width > cap;
+      std::vector<double> norms;
+      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) norms.push_back(full.block(k).norm());
+      std::sort(norms.rbegin(), norms.rend());
+      const double smallest_kept = width > cap ? norms[cap - 1] : 0.0;
+      int kept = 0;
+      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) {
+        if (full.block(k).norm() < smallest_kept) continue;
+        const int q = Q.row_ptr()[i] + kept++;
+        REQUIRE(q < Q.row_ptr()[i + 1]);
+        CHECK(Q.col()[q] == full.col()[k]);
+      }
+      CHECK(Q.row_ptr()[i + 1] - Q.row_ptr()[i] == kept);
+      CHECK(kept == std::min(width, cap));  // no ties among the norms here
+    }
+    REQUIRE(wide > c.n / 10);  // not vacuous: many rows are wider than the cap
+    sa::preserve_modes<3>(c.A, c.Dinv, c.ag, omega, 2, c.K, c.t.Kc, Q);
+    CHECK((Q.to_dense() * c.t.Kc - target).norm() <= 1e-12 * target.norm());
   }
 }
 
@@ -818,6 +845,13 @@ TEST_CASE("sa: prolongator truncation keeps the V-cycle SPD and shrinks P and th
   REQUIRE(cut.levels() >= 3);
   CHECK(cut.stats().levels[0].truncated > 0);
   checked_spd_map(cut, small.Ahat.rows());
+  prm.prolongator_truncation = 0;
+  prm.prolongator_max_blocks = 2;
+  SaAmg capped(prm);
+  REQUIRE(capped.setup(small.Ahat, sctx) == Status::success);
+  CHECK(capped.stats().levels[0].truncated > 0);
+  CHECK(capped.stats().levels[0].nnz_p <= 2LL * small.Ahat.block_rows());
+  checked_spd_map(capped, small.Ahat.rows());
 
   Prefiltered p = prefiltered_cloth(121, Tessellation::irregular, Pins::boundary);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
@@ -851,6 +885,8 @@ TEST_CASE("sa: prolongator truncation keeps the V-cycle SPD and shrinks P and th
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 0.1, .reuse = SaReuse::aggregates, .preserve_modes = true}),
                   ConfigError);
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 1, .preserve_modes = true}), ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_max_blocks = 4}), ConfigError);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_max_blocks = -1, .preserve_modes = true}), ConfigError);
 }
 
 TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive definite and reuse exact") {
