@@ -194,6 +194,11 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "rigid modes repaired (prolongator_truncation 0.05): a narrower degree-2 P and level 1 on "
                                "dropVertical's accordion, pinned's growth to 1M kept within 2x",
                                plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1", "prolongator_truncation=0.05"})));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2tc_sheets", "SA+PPCG lean2tc, sheets",
+                               "sa_ppcg_lean2t_sheets with at most 4 blocks per prolongator row (prolongator_max_blocks 4): "
+                               "only the accordion's wide rows narrow further",
+                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1", "prolongator_truncation=0.05",
+                                                  "prolongator_max_blocks=4"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",
