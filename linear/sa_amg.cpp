@@ -1140,7 +1140,8 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     if (prm.prolongator_truncation > 0 || prm.prolongator_max_blocks > 0)
       st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation, prm.prolongator_max_blocks);
     if (prm.preserve_modes) {
-      if (strong || st.truncated > 0) st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
+      if (strong || st.truncated > 0)  // the filter, or the dropped blocks, moved P Kc
+        st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
       K = NullSpace();
     }
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();

@@ -111,7 +111,7 @@ struct SaLevelStats {
   double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
   double lambda = 0;           ///< the inflated bound used
   double mode_correction = 0;  ///< largest relative change of a row of P by `preserve_modes` (0: off or exact)
-  long long truncated = 0;     ///< blocks of P_l dropped by `prolongator_truncation`
+  long long truncated = 0;     ///< blocks of P_l dropped by `prolongator_truncation` and `prolongator_max_blocks`
 };
 
 /// Setup wall time split [s] (summed over levels).
