@@ -185,20 +185,21 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "sa_ppcg_lean with aggregates split into sheets where springs align (split_bonded 0.01), "
                                "strength measured within the sheets: the accordions of dropVertical within 1.5x Diag-PCG's memory",
                                lean_sheets));
+  const std::vector<std::string> lean2_sheets = plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1"});
+  const std::vector<std::string> lean2t_sheets = plus(lean2_sheets, {"prolongator_truncation=0.05"});
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2_sheets", "SA+PPCG lean2, sheets",
                                "sa_ppcg_lean_sheets with two prolongator smoothing steps on the fine level only "
                                "(prolongator_degree 2, prolongator_degree_levels 1): the sheets' bending at 1M vertices",
-                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1"})));
+                               lean2_sheets));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2t_sheets", "SA+PPCG lean2t, sheets",
                                "sa_ppcg_lean2_sheets with each prolongator row truncated at 0.05 of its largest block and the "
                                "rigid modes repaired (prolongator_truncation 0.05): a narrower degree-2 P and level 1 on "
                                "dropVertical's accordion, pinned's growth to 1M kept within 2x",
-                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1", "prolongator_truncation=0.05"})));
+                               lean2t_sheets));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2tc_sheets", "SA+PPCG lean2tc, sheets",
                                "sa_ppcg_lean2t_sheets with at most 4 blocks per prolongator row (prolongator_max_blocks 4): "
                                "only the accordion's wide rows narrow further",
-                               plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1", "prolongator_truncation=0.05",
-                                                  "prolongator_max_blocks=4"})));
+                               plus(lean2t_sheets, {"prolongator_max_blocks=4"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

@@ -703,23 +703,27 @@ long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_bl
   const int n = P.rows();
   const int* pr = P.row_ptr().data();
   long long dropped = 0;
-#pragma omp parallel for schedule(static) reduction(+ : dropped) if (n > parallel_rows)
-  for (int i = 0; i < n; ++i) {
-    double top = 0;
-    for (int k = pr[i]; k < pr[i + 1]; ++k) top = std::max(top, P.block(k).squaredNorm());
-    double cut = fraction * fraction * top;  // compared as squares
-    if (max_blocks > 0 && pr[i + 1] - pr[i] > max_blocks) {
-      // The max_blocks-th largest kept norm: blocks below it go as well (ties stay).
-      std::vector<double> norms;
+#pragma omp parallel reduction(+ : dropped) if (n > parallel_rows)
+  {
+    std::vector<double> norms, order;  // one row's squared block norms, buffers reused across the rows
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      norms.clear();
       for (int k = pr[i]; k < pr[i + 1]; ++k) norms.push_back(P.block(k).squaredNorm());
-      std::nth_element(norms.begin(), norms.begin() + (max_blocks - 1), norms.end(), std::greater<>());
-      cut = std::max(cut, norms[max_blocks - 1]);
-    }
-    for (int k = pr[i]; k < pr[i + 1]; ++k)
-      if (P.block(k).squaredNorm() < cut) {
-        P.block(k).setZero();
-        ++dropped;
+      if (norms.empty()) continue;
+      double cut = fraction * fraction * *std::max_element(norms.begin(), norms.end());  // compared as squares
+      if (max_blocks > 0 && static_cast<int>(norms.size()) > max_blocks) {
+        // The max_blocks-th largest norm: blocks below it go as well (ties stay).
+        order.assign(norms.begin(), norms.end());
+        std::nth_element(order.begin(), order.begin() + (max_blocks - 1), order.end(), std::greater<>());
+        cut = std::max(cut, order[max_blocks - 1]);
       }
+      for (int k = pr[i]; k < pr[i + 1]; ++k)
+        if (norms[k - pr[i]] < cut) {
+          P.block(k).setZero();
+          ++dropped;
+        }
+    }
   }
   if (dropped > 0) P.prune_zero_blocks();
   return dropped;
@@ -888,18 +892,19 @@ Checker SaAmg::validate(const Params& p) {
                "false when implicit_prolongator is true (the implicit P is applied from A and Phat)")
       .require(p.prolongator_truncation >= 0 && p.prolongator_truncation < 1, "prolongator_truncation",
                p.prolongator_truncation, "in [0, 1)")
-      .require(p.prolongator_truncation == 0 || p.preserve_modes, "prolongator_truncation", p.prolongator_truncation,
-               "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
-      .require(p.prolongator_truncation == 0 || p.reuse == SaReuse::none, "prolongator_truncation",
-               p.prolongator_truncation, "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)")
       .require(p.prolongator_max_blocks >= 0, "prolongator_max_blocks", p.prolongator_max_blocks, ">= 0")
-      .require(p.prolongator_max_blocks == 0 || p.preserve_modes, "prolongator_max_blocks", p.prolongator_max_blocks,
-               "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
-      .require(p.prolongator_max_blocks == 0 || p.reuse == SaReuse::none, "prolongator_max_blocks",
-               p.prolongator_max_blocks, "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)")
       .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
       .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
                "false unless split_sheets is true (it measures strength within the sheets)");
+  // Both ways of dropping prolongator blocks need the mode repair and fresh patterns.
+  auto trims = [&](const char* key, auto value) {
+    c.require(value == 0 || p.preserve_modes, key, value,
+              "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
+        .require(value == 0 || p.reuse == SaReuse::none, key, value,
+                 "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)");
+  };
+  trims("prolongator_truncation", p.prolongator_truncation);
+  trims("prolongator_max_blocks", p.prolongator_max_blocks);
   return c;
 }
 
