@@ -326,7 +326,7 @@ Json hierarchy_json(const std::vector<weft::linear::SaLevelStats>& levels) {
   Json out = Json::array();
   for (const weft::linear::SaLevelStats& l : levels)
     out.push_back({{"nodes", l.rows}, {"block_size", l.block_size}, {"blocks", l.nnz_blocks}, {"special", l.special},
-                   {"aggregates", l.aggregates}, {"max_aggregate", l.max_aggregate}, {"sheet_splits", l.sheet_splits}, {"reordered", l.reordered}, {"p_blocks", l.nnz_p}, {"restriction_chunks", l.restriction_chunks}, {"lambda", l.lambda}, {"mode_correction", l.mode_correction}, {"p_truncated", l.truncated}});
+                   {"aggregates", l.aggregates}, {"max_aggregate", l.max_aggregate}, {"sheet_splits", l.sheet_splits}, {"sheet_merges", l.sheet_merges}, {"reordered", l.reordered}, {"p_blocks", l.nnz_p}, {"restriction_chunks", l.restriction_chunks}, {"lambda", l.lambda}, {"mode_correction", l.mode_correction}, {"p_truncated", l.truncated}});
   return out;
 }
 

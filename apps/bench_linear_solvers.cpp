@@ -200,6 +200,10 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                                "sa_ppcg_lean2t_sheets with at most 4 blocks per prolongator row (prolongator_max_blocks 4): "
                                "only the accordion's wide rows narrow further",
                                plus(lean2t_sheets, {"prolongator_max_blocks=4"})));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2tm_sheets", "SA+PPCG lean2tm, sheets",
+                               "sa_ppcg_lean2t_sheets with the split's pieces of at most 3 nodes joined to a neighbouring "
+                               "aggregate of their sheet (split_merge 3): a smaller level 1 on dropVertical's accordion",
+                               plus(lean2t_sheets, {"split_merge=3"})));
   list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
                                "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
                                "layers joined by springs, as dropVertical's accordion",

@@ -347,6 +347,42 @@ int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<in
   return count - before;
 }
 
+int merge_small_aggregates(const SheetEdges& edges, Aggregates& aggs, int max_size) {
+  std::vector<int>& agg = aggs.node_agg;
+  std::vector<int> size(aggs.count, 0);
+  for (const int a : agg)
+    if (a >= 0) ++size[a];
+  // One vote (small, large) per sheet coupling between a small and a large aggregate.
+  std::vector<std::pair<int, int>> votes;
+  for (const auto& [i, j] : edges) {
+    const int a = agg[i], b = agg[j];
+    if (a < 0 || b < 0 || a == b) continue;
+    if (size[a] <= max_size && size[b] > max_size) votes.emplace_back(a, b);
+    if (size[b] <= max_size && size[a] > max_size) votes.emplace_back(b, a);
+  }
+  std::sort(votes.begin(), votes.end());
+  std::vector<int> target(aggs.count, -1), best(aggs.count, 0);
+  for (std::size_t r = 0; r < votes.size();) {
+    std::size_t e = r;
+    while (e < votes.size() && votes[e] == votes[r]) ++e;
+    const auto [a, b] = votes[r];
+    if (static_cast<int>(e - r) > best[a]) best[a] = static_cast<int>(e - r), target[a] = b;  // ties: lowest b
+    r = e;
+  }
+  // Targets are large, so never merged themselves: one pass renumbers.
+  std::vector<int> label(aggs.count, -1);
+  int count = 0;
+  for (int a = 0; a < aggs.count; ++a)
+    if (target[a] < 0) label[a] = count++;
+  std::fill(size.begin(), size.end(), 0);
+  for (int& a : agg)
+    if (a >= 0) a = label[target[a] < 0 ? a : target[a]], ++size[a];
+  const int merged = aggs.count - count;
+  aggs.count = count;
+  aggs.max_size = count == 0 ? 0 : *std::max_element(size.begin(), size.begin() + count);
+  return merged;
+}
+
 SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs) {
   SheetEdges coarse;
   coarse.reserve(edges.size() / 4);
@@ -809,6 +845,7 @@ struct Level {
   sa::Aggregates aggs;
   int num_special = 0;
   int sheet_splits = 0;  // aggregates added by split_sheets
+  int sheet_merges = 0;  // aggregates removed by split_merge
   bool reordered = false;  // aggregates renumbered (aggregate_order)
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
@@ -895,7 +932,10 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.prolongator_max_blocks >= 0, "prolongator_max_blocks", p.prolongator_max_blocks, ">= 0")
       .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
       .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
-               "false unless split_sheets is true (it measures strength within the sheets)");
+               "false unless split_sheets is true (it measures strength within the sheets)")
+      .require(p.split_merge >= 0, "split_merge", p.split_merge, ">= 0")
+      .require(p.split_merge == 0 || p.split_sheets, "split_merge", p.split_merge,
+               "0 unless split_sheets is true (it merges within the sheets)");
   // Both ways of dropping prolongator blocks need the mode repair and fresh patterns.
   auto trims = [&](const char* key, auto value) {
     c.require(value == 0 || p.preserve_modes, key, value,
@@ -1071,6 +1111,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
             L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan, &A, prm.split_bonded);
           else
             L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
+          if (prm.split_merge > 0) L.sheet_merges = sa::merge_small_aggregates(sheets, L.aggs, prm.split_merge);
         }
         // The next level visits its nodes in their natural order (see `sa::aggregate`).
         if (prm.aggregate_order != AggregateOrder::natural) {
@@ -1115,6 +1156,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   st.aggregates = L.aggs.count;
   st.max_aggregate = L.aggs.max_size;
   st.sheet_splits = L.sheet_splits;
+  st.sheet_merges = L.sheet_merges;
   st.reordered = L.reordered;
 
   sa::Tentative tent;

@@ -104,6 +104,7 @@ struct SaLevelStats {
   int aggregates = 0;          ///< = rows of the next level (0 on the coarsest)
   int deficient = 0;           ///< aggregates whose local QR dropped a column
   int sheet_splits = 0;        ///< aggregates added by `split_sheets`
+  int sheet_merges = 0;        ///< small pieces joined to a neighbour by `split_merge`
   bool reordered = false;      ///< aggregates renumbered by RCM (`aggregate_order`)
   int max_aggregate = 0;       ///< largest aggregate (nodes)
   long long nnz_p = 0;         ///< stored blocks of P_l
@@ -202,6 +203,12 @@ SheetEdges sheet_edges(const BsrView<3, 3>& A);
 /// and cannot slide apart.
 int split_sheets(const SheetEdges& edges, Aggregates& aggs, const std::vector<int>& scan = {},
                  const BsrView<3, 3>* A = nullptr, double bonded = 0);
+/// Joins each aggregate of at most `max_size` nodes to the larger aggregate (more than
+/// `max_size` nodes) it shares the most `edges` with, the lowest-numbered on a tie
+/// (`SaAmg::Params::split_merge`); an aggregate with no such neighbour stays. The others
+/// keep their relative order. Sheet edges join nodes of one sheet, so a piece the split cut
+/// off its layer's neighbours rejoins one of them. Returns how many aggregates it removed.
+int merge_small_aggregates(const SheetEdges& edges, Aggregates& aggs, int max_size);
 /// The next level's sheet couplings: aggregates a != b are coupled when two of their members
 /// are (sorted, without duplicates).
 SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs);
@@ -393,6 +400,14 @@ class SaAmg {
     /// have a middle eigenvalue above this fraction of the largest stays whole, since oblique
     /// springs bond its layers in shear (0: split every aggregate).
     double split_bonded = 0;
+    /// With `split_sheets`: an aggregate of at most this many nodes after the split (a piece
+    /// the split cut off, or a small leftover) joins the larger neighbouring aggregate of its
+    /// sheet it shares the most sheet couplings with (0: none). Each piece is a row of the
+    /// coarse operator A_1, SA's largest array, with as many neighbours as a whole aggregate.
+    /// On regular dropVertical at 160k (bench solver sa_ppcg_lean2t_sheets) 3 merges 3269 of
+    /// 21265 fine aggregates: A_1 820k -> 562k blocks, SA+PPCG's memory 1.56x -> 1.39x
+    /// Diag-PCG's, at 26.6 -> 27.1 iterations (bench/results/table-11-1/MERGE.md).
+    int split_merge = 0;
     AggregateOrder aggregate_order = AggregateOrder::automatic;
     /// Correct the smoothed prolongator so that it maps the coarse near null space to the one
     /// smoothed with the whole A (`sa::preserve_modes`): the filter's lumping keeps the
@@ -451,6 +466,8 @@ class SaAmg {
               {Unit::none, Range::any(), "with split_sheets: aggregation's strength threshold relative to each node's largest coupling within its sheet, not to its springs"});
       v.field("split_bonded", split_bonded,
               {Unit::none, Range::closed(0, 1), "with split_sheets: keep an aggregate whole when its springs between sheets, summed as k n n^T, have a middle eigenvalue above this fraction of the largest (0: split all)"});
+      v.field("split_merge", split_merge,
+              {Unit::none, Range::ge(0), "with split_sheets: an aggregate of at most this many nodes joins the neighbouring aggregate of its sheet it shares the most sheet couplings with (0: none)"});
       v.field("preserve_modes", preserve_modes,
               {Unit::none, Range::any(), "correct the smoothed prolongator, within its pattern, to map the coarse near null space to the fine one smoothed with the whole A (the filter loses the rotations)"});
       v.choice("aggregate_order", aggregate_order, aggregate_order_names,

@@ -439,6 +439,90 @@ TEST_CASE("sa: split_sheets keeps the V-cycle SPD and cuts the PCG iterations on
   CHECK(pcg(p.Ahat, p.chat, layered).iterations == pcg(p.Ahat, p.chat, plain).iterations);
 }
 
+TEST_CASE("sa: merge_small_aggregates joins the split's small pieces to a neighbour within their sheet") {
+  const SpringStack st = spring_stack(21, 4, 0.01);
+  const auto A = bsr_view(st.A);
+  const sa::SheetEdges edges = sa::sheet_edges(A);
+  sa::Aggregates split = fine_aggregates(A);
+  sa::split_sheets(edges, split);
+  const int max_size = 3;
+  std::vector<int> size(split.count, 0);
+  for (const int a : split.node_agg)
+    if (a >= 0) ++size[a];
+  // The small aggregates that have a large one across a sheet coupling.
+  std::vector<std::uint8_t> joinable(split.count, 0);
+  for (const auto& [i, j] : edges) {
+    const int a = split.node_agg[i], b = split.node_agg[j];
+    if (a < 0 || b < 0 || a == b) continue;
+    if (size[a] <= max_size && size[b] > max_size) joinable[a] = 1;
+    if (size[b] <= max_size && size[a] > max_size) joinable[b] = 1;
+  }
+  const int expected = static_cast<int>(std::count(joinable.begin(), joinable.end(), 1));
+  const int small = static_cast<int>(std::count_if(size.begin(), size.end(), [&](int s) { return s <= max_size; }));
+  MESSAGE("stack of 4 layers of 441: " << split.count << " aggregates after the split, " << small << " of at most "
+                                       << max_size << " nodes, " << expected << " with a larger sheet neighbour");
+  REQUIRE(expected > split.count / 20);  // not a vacuous pass: the split leaves many pieces
+  sa::Aggregates merged = split;
+  const int removed = sa::merge_small_aggregates(edges, merged, max_size);
+  CHECK(removed == expected);
+  CHECK(merged.count == split.count - removed);
+  // Large aggregates keep their members together and apart; a joinable piece lands in a
+  // large aggregate it touched through a sheet coupling; the others keep their members.
+  std::vector<int> image(split.count, -1);
+  for (int i = 0; i < A.rows; ++i) {
+    const int a = split.node_agg[i];
+    REQUIRE((a < 0) == (merged.node_agg[i] < 0));
+    if (a < 0) continue;
+    if (image[a] < 0) image[a] = merged.node_agg[i];
+    CHECK(merged.node_agg[i] == image[a]);
+  }
+  std::vector<int> owner(merged.count, -1);  // the unmerged aggregate each new one came from
+  for (int a = 0; a < split.count; ++a)
+    if (!joinable[a]) {
+      CHECK(owner[image[a]] == -1);  // no two unmerged aggregates share an image
+      owner[image[a]] = a;
+    }
+  CHECK(std::count(owner.begin(), owner.end(), -1) == 0);
+  for (int a = 0; a < split.count; ++a) {
+    if (!joinable[a]) continue;
+    const int b = owner[image[a]];
+    CHECK(size[b] > max_size);
+    bool touches = false;
+    for (const auto& [i, j] : edges)
+      touches = touches || (split.node_agg[i] == a && split.node_agg[j] == b) || (split.node_agg[i] == b && split.node_agg[j] == a);
+    CHECK(touches);
+  }
+  CHECK(aggregates_across_layers(merged, st.per_layer) == 0);  // still within one sheet
+  std::vector<int> merged_size(merged.count, 0);
+  for (const int a : merged.node_agg)
+    if (a >= 0) ++merged_size[a];
+  CHECK(merged.max_size == *std::max_element(merged_size.begin(), merged_size.end()));
+  sa::Aggregates again = split;
+  sa::merge_small_aggregates(edges, again, max_size);
+  CHECK(again.node_agg == merged.node_agg);  // deterministic
+  sa::Aggregates none = split;
+  CHECK(sa::merge_small_aggregates(edges, none, 0) == 0);
+  CHECK(none.node_agg == split.node_agg);
+  // In the hierarchy: fewer coarse nodes, the V-cycle stays SPD, and PCG still converges.
+  SaAmg::Params prm = small_coarse(20);
+  prm.split_sheets = true;
+  SaAmg plain(prm);
+  prm.split_merge = max_size;
+  SaAmg joined(prm);
+  REQUIRE(plain.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+  REQUIRE(joined.setup(st.A, SolveContext{&st.pins, &st.x}) == Status::success);
+  CHECK(joined.stats().levels[0].sheet_merges > 0);
+  CHECK(joined.stats().levels[0].aggregates < plain.stats().levels[0].aggregates);
+  checked_spd_map(joined, st.A.rows());
+  const PcgResult a = pcg(st.A, st.b, plain), b = pcg(st.A, st.b, joined);
+  MESSAGE("iterations: " << a.iterations << " split, " << b.iterations << " split + merge; level 1: "
+                         << plain.stats().levels[1].rows << " -> " << joined.stats().levels[1].rows << " nodes");
+  CHECK(a.converged);
+  CHECK(b.converged);
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.split_merge = 2}), ConfigError);  // needs split_sheets
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.split_sheets = true, .split_merge = -1}), ConfigError);
+}
+
 TEST_CASE("sa: split_bonded splits the aggregates of sliding layers and keeps those bonded by oblique springs whole") {
   SaAmg::Params prm = small_coarse(20);
   prm.split_sheets = true;
