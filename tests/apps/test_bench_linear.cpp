@@ -50,6 +50,19 @@ std::map<std::string, std::map<int, json>> by_solver_and_m(const std::vector<jso
   return out;
 }
 
+/// The bench's records of a one-size run by solver, each checked to have run without a failure.
+std::map<std::string, json> by_solver(const std::vector<json>& results) {
+  std::map<std::string, json> out;
+  for (const json& j : results) {
+    REQUIRE(j.at("failures").get<int>() == 0);
+    out[j.at("solver").get<std::string>()] = j;
+  }
+  return out;
+}
+
+/// `key` of level l of a record's SA hierarchy.
+double level_value(const json& j, int l, const char* key) { return j.at("hierarchy")[l].at(key).get<double>(); }
+
 }  // namespace
 
 TEST_SUITE("apps") {
@@ -428,22 +441,17 @@ TEST_SUITE("slow") {
     const auto results = bench_results(
         "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers sa_ppcg_lean2_sheets sa_ppcg_lean2t_sheets", out);
     REQUIRE(results.size() == 2);
-    std::map<std::string, json> by;
-    for (const json& j : results) {
-      REQUIRE(j.at("failures").get<int>() == 0);
-      by[j.at("solver").get<std::string>()] = j;
-    }
+    const std::map<std::string, json> by = by_solver(results);
     const json &whole = by.at("sa_ppcg_lean2_sheets"), &cut = by.at("sa_ppcg_lean2t_sheets");
-    const auto level = [](const json& j, int l, const char* key) { return j.at("hierarchy")[l].at(key).get<double>(); };
     MESSAGE("lean2_sheets / lean2t_sheets: " << whole.at("mean_iterations").get<double>() << " / " << cut.at("mean_iterations").get<double>()
-                                             << " iterations, fine P " << level(whole, 0, "p_blocks") << " / " << level(cut, 0, "p_blocks")
-                                             << " blocks, level 1 " << level(whole, 1, "blocks") << " / " << level(cut, 1, "blocks")
+                                             << " iterations, fine P " << level_value(whole, 0, "p_blocks") << " / " << level_value(cut, 0, "p_blocks")
+                                             << " blocks, level 1 " << level_value(whole, 1, "blocks") << " / " << level_value(cut, 1, "blocks")
                                              << " blocks, own memory " << whole.at("memory_bytes").get<double>() / 1e6 << " / "
                                              << cut.at("memory_bytes").get<double>() / 1e6 << " MB");
-    CHECK(level(whole, 0, "p_truncated") == 0);
-    CHECK(level(cut, 0, "p_truncated") == level(whole, 0, "p_blocks") - level(cut, 0, "p_blocks"));  // same aggregates
-    CHECK(level(cut, 0, "p_blocks") < 0.8 * level(whole, 0, "p_blocks"));
-    CHECK(level(cut, 1, "blocks") < 0.9 * level(whole, 1, "blocks"));
+    CHECK(level_value(whole, 0, "p_truncated") == 0);
+    CHECK(level_value(cut, 0, "p_truncated") == level_value(whole, 0, "p_blocks") - level_value(cut, 0, "p_blocks"));  // same aggregates
+    CHECK(level_value(cut, 0, "p_blocks") < 0.8 * level_value(whole, 0, "p_blocks"));
+    CHECK(level_value(cut, 1, "blocks") < 0.9 * level_value(whole, 1, "blocks"));
     CHECK(cut.at("memory_bytes").get<double>() < 0.9 * whole.at("memory_bytes").get<double>());
     CHECK(cut.at("mean_iterations").get<double>() <= whole.at("mean_iterations").get<double>() + 2);
     fs::remove_all(out);
@@ -458,28 +466,23 @@ TEST_SUITE("slow") {
         "sa_ppcg_lean2tm_sheets",
         out);
     REQUIRE(results.size() == 3);
-    std::map<std::string, json> by;
-    for (const json& j : results) {
-      REQUIRE(j.at("failures").get<int>() == 0);
-      by[j.at("solver").get<std::string>()] = j;
-    }
+    const std::map<std::string, json> by = by_solver(results);
     const json &diag = by.at("diag_pcg"), &split = by.at("sa_ppcg_lean2t_sheets"), &merged = by.at("sa_ppcg_lean2tm_sheets");
-    const auto level = [](const json& j, int l, const char* key) { return j.at("hierarchy")[l].at(key).get<double>(); };
     const auto ratio = [&](const json& j) {
       return j.at("memory_with_matrix_bytes").get<double>() / diag.at("memory_with_matrix_bytes").get<double>();
     };
     MESSAGE("lean2t_sheets / lean2tm_sheets: " << split.at("mean_iterations").get<double>() << " / "
                                                << merged.at("mean_iterations").get<double>() << " iterations, fine aggregates "
-                                               << level(split, 0, "aggregates") << " / " << level(merged, 0, "aggregates")
-                                               << " (" << level(merged, 0, "sheet_merges") << " merged), level 1 "
-                                               << level(split, 1, "blocks") << " / " << level(merged, 1, "blocks")
+                                               << level_value(split, 0, "aggregates") << " / " << level_value(merged, 0, "aggregates")
+                                               << " (" << level_value(merged, 0, "sheet_merges") << " merged), level 1 "
+                                               << level_value(split, 1, "blocks") << " / " << level_value(merged, 1, "blocks")
                                                << " blocks, memory " << ratio(split) << "x / " << ratio(merged) << "x Diag-PCG's");
     CHECK(ratio(split) > 1.5);  // the case where the target is at stake (1.504x)
     CHECK(ratio(merged) < 1.45);
-    CHECK(level(split, 0, "sheet_merges") == 0);
-    CHECK(level(merged, 0, "sheet_merges") > 0);
-    CHECK(level(merged, 0, "aggregates") == level(split, 0, "aggregates") - level(merged, 0, "sheet_merges"));
-    CHECK(level(merged, 1, "blocks") < 0.8 * level(split, 1, "blocks"));
+    CHECK(level_value(split, 0, "sheet_merges") == 0);
+    CHECK(level_value(merged, 0, "sheet_merges") > 0);
+    CHECK(level_value(merged, 0, "aggregates") == level_value(split, 0, "aggregates") - level_value(merged, 0, "sheet_merges"));
+    CHECK(level_value(merged, 1, "blocks") < 0.8 * level_value(split, 1, "blocks"));
     CHECK(merged.at("mean_iterations").get<double>() <= 1.25 * split.at("mean_iterations").get<double>());
     fs::remove_all(out);
   }
