@@ -76,8 +76,10 @@ enum class GapTerm {
   none,         ///< n^T d >= 0 (spec 03 (4.1), the thesis)
   penetration,  ///< n^T d >= -min(gap, 0): an overlap at the start is pushed out
   full,         ///< n^T d >= -gap: a proximity contact may close its gap
+  start,        ///< n^T d >= -gap_0, gap_0 the start distance along n: a contact found by CCD at
+                ///< toi may approach up to its plane instead of stopping where the step began
 };
-inline constexpr std::array<std::string_view, 3> gap_term_names = {"none", "penetration", "full"};
+inline constexpr std::array<std::string_view, 4> gap_term_names = {"none", "penetration", "full", "start"};
 
 /// Which rods get a new predictor d_u = d - K^-1 f(d) at a constrained Newton iteration after
 /// the first (ADONIS; staggered projections re-linearise every rod, so both are the same there).
@@ -197,7 +199,10 @@ struct RodContactParams {
              "gets the pair's follower: the linearisations of the edges' distance accumulate instead of replacing each other "
              "(false: the follower always moves; where the held point acts as a pivot the pair then alternates between two "
              "places, or creeps along the edges, until the re-detections run out)"});
-    v.choice("gap", gap, gap_term_names, "start gap in the linearised constraint: none (the thesis), penetration, or full");
+    v.choice("gap", gap, gap_term_names,
+             "start gap in the linearised constraint: none (n^T d >= 0, the thesis), penetration (an overlap at the start is pushed "
+             "out), full (n^T d >= -gap at detection: a proximity contact may close its gap), or start (n^T d >= -gap_0, the distance "
+             "along n at the start of the step: a CCD contact may approach up to its plane)");
     v.choice("solver", solver, contact::contact_solver_names,
              "contact solve of a group: gauss_seidel (the thesis, capped at gs_max) or newton (Gauss-Seidel, then semismooth Newton to contact_tol; the step fails above it)");
     v.field("solver_max", solver_max, {Unit::none, Range::closed(1, 100000), "newton: Newton steps per contact solve after the Gauss-Seidel sweeps"});
@@ -515,7 +520,16 @@ class RodResponse {
     }
     if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement;
     k.b = s * F.transpose() * scripted;
-    if (full_gap || prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) k.b[0] += s * c.gap;
+    if (full_gap || prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) {
+      k.b[0] += s * c.gap;
+    } else if (prm_.gap == GapTerm::start) {
+      // The gap at toi less the normal approach over [0, toi] of the trajectory it was found
+      // on (this round's d): the distance along n at the start of the step.
+      double approach = 0;
+      for (const auto& [r, i, g] : st) approach += g * n.dot(sys.body(r).d.template segment<3>(4 * i));
+      if (c.kind == RodContact::Kind::rod_obstacle) approach -= n.dot(c.obstacle_displacement);
+      k.b[0] += s * (c.gap - c.toi * approach);
+    }
     return true;
   }
 
