@@ -110,11 +110,11 @@ double largest_stable(const std::vector<StabilityResult>& r, const std::string& 
   }
   return best;
 }
-/// The whip sweep of Figure 9.2 at 20 rad/s for the three response methods: scenes/whip.json
-/// set up as bench/rods/figure_9_2.sh sets it up (the handle 0.3 rad before the wall, no
-/// gravity), 1 s simulated, plus `extra` overrides.
-StabilityOptions whip_at_20(const std::string& name, std::vector<double> dts, const std::vector<std::string>& extra = {},
-                            const std::string& speed = "20") {
+/// The whip sweep of Figure 9.2 at `speed` rad/s for the three response methods:
+/// scenes/whip.json set up as bench/rods/figure_9_2.sh sets it up (the handle 0.3 rad before
+/// the wall, no gravity), 1 s simulated, plus `extra` overrides.
+StabilityOptions whip_at(const std::string& speed, const std::string& name, std::vector<double> dts,
+                         const std::vector<std::string>& extra = {}) {
   StabilityOptions o;
   o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
   o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]"};
@@ -128,6 +128,29 @@ StabilityOptions whip_at_20(const std::string& name, std::vector<double> dts, co
   o.quiet = true;
   return o;
 }
+
+/// The whip against the near wall (edge 7 cm from the axis: every run strikes it) at `speed`
+/// rad/s over `dts`, with the contact re-detection and Newton limits raised as in the
+/// resolution sweep (bench/results/rods/figure_9_2_resolution/), plus `extra`: `check` runs
+/// on every cell, each required to strike the wall.
+template <class Check>
+void near_wall_cells(const std::string& speed, const std::string& name, std::vector<double> dts, std::vector<std::string> extra,
+                     Check check) {
+  for (const char* o : {"obstacles.0.center=[0.17,0,0]", "contact.redetections=20", "integrator.max_iterations=200"})
+    extra.insert(extra.begin(), o);
+  const size_t cells = 3 * dts.size();
+  std::vector<StabilityResult> r;
+  REQUIRE(run_stability(whip_at(speed, name, std::move(dts), extra), &r) == 0);
+  REQUIRE(r.size() == cells);
+  for (const auto& c : r) {
+    CAPTURE(c.combo);
+    CAPTURE(c.dt);
+    CAPTURE(c.message);
+    CAPTURE(c.max_strain);
+    CHECK(c.contact_steps > 0);
+    check(c);
+  }
+}
 }  // namespace
 
 TEST_CASE("V-20 with the start gap: on the near-wall whip at 10 rad/s ADONIS holds at 50 ms where linear compliance fails at 5 ms and impulses at 2 ms") {
@@ -136,19 +159,7 @@ TEST_CASE("V-20 with the start gap: on the near-wall whip at 10 rad/s ADONIS hol
   // the wall while the handle turned a radian and stretched the rod by 194 %). The sweep with
   // it (bench/results/rods/figure_9_2_gap_start/, 30 vertices, 1 s) gives impulses 1 ms,
   // linear compliance 2 ms and ADONIS 50 ms at this speed. Four of its steps, about 2 s.
-  const StabilityOptions o = whip_at_20("stab_v20_gap", {0.05, 0.02, 0.005, 0.002},
-                                        {"obstacles.0.center=[0.17,0,0]", "contact.gap=start", "contact.redetections=20",
-                                         "integrator.max_iterations=200"},
-                                        "10");
-  std::vector<StabilityResult> r;
-  REQUIRE(run_stability(o, &r) == 0);
-  REQUIRE(r.size() == 12);
-  for (const auto& c : r) {
-    CAPTURE(c.combo);
-    CAPTURE(c.dt);
-    CAPTURE(c.message);
-    CAPTURE(c.max_strain);
-    CHECK(c.contact_steps > 0);  // every run strikes the wall
+  near_wall_cells("10", "stab_v20_gap", {0.05, 0.02, 0.005, 0.002}, {"contact.gap=start"}, [](const StabilityResult& c) {
     if (c.combo == "rods_adonis") {
       CHECK(c.outcome == Stability::stable);
       CHECK(c.max_strain <= (c.dt <= 0.02 ? 0.0101 : 0.3));  // within its stretch tolerance up to 20 ms
@@ -160,7 +171,7 @@ TEST_CASE("V-20 with the start gap: on the near-wall whip at 10 rad/s ADONIS hol
       CHECK(c.outcome == Stability::stable);
       CHECK(c.max_strain > 0.02);  // but 4 % where ADONIS keeps 1 %
     }
-  }
+  });
 }
 
 TEST_SUITE("slow") {
@@ -169,7 +180,7 @@ TEST_SUITE("slow") {
   // (the handle starting 0.3 rad before the wall, no gravity: see the script), 1 s simulated
   // instead of 5 s, on a coarse sweep of 8 steps from 0.5 ms to 100 ms. About 1-2 minutes.
   TEST_CASE("V-20 reduced: the whip at 20 rad/s - ADONIS's largest stable step in contact beats linear compliance's and is 10x impulses'") {
-    const StabilityOptions o = whip_at_20("stab_v20", {0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005});
+    const StabilityOptions o = whip_at("20", "stab_v20", {0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005});
     std::vector<StabilityResult> r;
     REQUIRE(run_stability(o, &r) == 0);
     REQUIRE(r.size() == 24);
@@ -207,17 +218,7 @@ TEST_SUITE("slow") {
     // impulses 0.05 ms, linear compliance 5 ms and ADONIS 20 ms by the thesis' 50 % rule,
     // and at 1 % strain neither impulses nor linear compliance down to 50 us against 10 ms
     // for ADONIS. This checks four step sizes of it (about 15 s).
-    const StabilityOptions o =
-        whip_at_20("stab_v20_fine", {0.02, 0.01, 0.001, 0.0005},
-                   {"obstacles.0.center=[0.17,0,0]", "rods.0.vertices=120", "contact.redetections=20", "integrator.max_iterations=200"});
-    std::vector<StabilityResult> r;
-    REQUIRE(run_stability(o, &r) == 0);
-    REQUIRE(r.size() == 12);
-    for (const auto& c : r) {
-      CAPTURE(c.combo);
-      CAPTURE(c.dt);
-      CAPTURE(c.message);
-      CHECK(c.contact_steps > 0);  // every run strikes the wall
+    near_wall_cells("20", "stab_v20_fine", {0.02, 0.01, 0.001, 0.0005}, {"rods.0.vertices=120"}, [](const StabilityResult& c) {
       if (c.combo == "rods_adonis") {
         CHECK(c.outcome == Stability::stable);
         if (c.dt <= 0.01) CHECK(c.max_strain <= 0.0101);  // its stretch tolerance, 1 %
@@ -229,6 +230,6 @@ TEST_SUITE("slow") {
         CHECK(c.outcome == Stability::stable);
         CHECK(c.max_strain > 0.05);  // stable by the 50 % rule, but stretched by 10-35 %
       }
-    }
+    });
   }
 }
