@@ -505,11 +505,15 @@ class RodResponse {
     k.rods = {c.rod_a, c.kind == RodContact::Kind::rod_rod && c.rod_b != c.rod_a ? c.rod_b : -1};
     for (int side = 0; side < 2; ++side)
       if (k.rods[side] >= 0) k.G[side] = Eigen::MatrixXd::Zero(sys.body(k.rods[side]).q.size(), 3), k.blocks[side] = 0;
-    Eigen::Vector3d scripted = Eigen::Vector3d::Zero();
+    // scripted: the held vertices' prescribed part of the relative displacement; relative: all
+    // of it on the trajectory this round detected on (d), for the start gap.
+    Eigen::Vector3d scripted = Eigen::Vector3d::Zero(), relative = Eigen::Vector3d::Zero();
     for (const auto& [r, i, g] : st) {
       const auto& b = sys.body(r);
+      const Eigen::Vector3d moved = g * b.d.template segment<3>(4 * i);
+      relative += moved;
       if (b.fixed[4 * i]) {
-        scripted += g * b.d.template segment<3>(4 * i);  // the held vertex's prescribed displacement
+        scripted += moved;
         continue;
       }
       const int side = r == k.rods[0] ? 0 : 1;
@@ -518,17 +522,14 @@ class RodResponse {
       int& used = k.blocks[side];
       if (std::find(list.begin(), list.begin() + used, i) == list.begin() + used) list[used++] = i;
     }
-    if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement;
+    if (c.kind == RodContact::Kind::rod_obstacle) scripted -= c.obstacle_displacement, relative -= c.obstacle_displacement;
     k.b = s * F.transpose() * scripted;
     if (full_gap || prm_.gap == GapTerm::full || (prm_.gap == GapTerm::penetration && c.gap < 0)) {
       k.b[0] += s * c.gap;
     } else if (prm_.gap == GapTerm::start) {
-      // The gap at toi less the normal approach over [0, toi] of the trajectory it was found
-      // on (this round's d): the distance along n at the start of the step.
-      double approach = 0;
-      for (const auto& [r, i, g] : st) approach += g * n.dot(sys.body(r).d.template segment<3>(4 * i));
-      if (c.kind == RodContact::Kind::rod_obstacle) approach -= n.dot(c.obstacle_displacement);
-      k.b[0] += s * (c.gap - c.toi * approach);
+      // The gap at toi less the normal approach over [0, toi] of the detected trajectory: the
+      // distance along n at the start of the step.
+      k.b[0] += s * (c.gap - c.toi * n.dot(relative));
     }
     return true;
   }

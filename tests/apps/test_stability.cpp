@@ -7,6 +7,7 @@
 
 #include "apps/stability.hpp"
 #include "cli_support.hpp"
+#include "tests/support/rod_fixtures.hpp"
 
 using namespace weft::app;
 using namespace weft::test;
@@ -64,8 +65,8 @@ TEST_SUITE("apps") {
     // wall; at 5 ms it strikes it. Both are stable: the map marks the first `o`.
     StabilityOptions o;
     o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
-    o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]",
-                   "rods.0.motion.angular_velocity=[0,0,20]"};
+    o.overrides = weft::support::whip_sweep_overrides();
+    o.overrides.push_back("rods.0.motion.angular_velocity=[0,0,20]");
     o.duration = 0.4;
     o.dts = {0.05, 0.005};
     o.combos = {"rods_adonis"};
@@ -112,12 +113,13 @@ double largest_stable(const std::vector<StabilityResult>& r, const std::string& 
 }
 /// The whip sweep of Figure 9.2 at `speed` rad/s for the three response methods:
 /// scenes/whip.json set up as bench/rods/figure_9_2.sh sets it up (the handle 0.3 rad before
-/// the wall, no gravity), 1 s simulated, plus `extra` overrides.
+/// the wall, no gravity; `near_wall`: the wall's edge 7 cm from the axis), 1 s simulated, plus
+/// `extra` overrides.
 StabilityOptions whip_at(const std::string& speed, const std::string& name, std::vector<double> dts,
-                         const std::vector<std::string>& extra = {}) {
+                         const std::vector<std::string>& extra = {}, bool near_wall = false) {
   StabilityOptions o;
   o.scene = std::string(WEFT_SOURCE_DIR) + "/scenes/whip.json";
-  o.overrides = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]"};
+  o.overrides = weft::support::whip_sweep_overrides(near_wall);
   o.overrides.insert(o.overrides.end(), extra.begin(), extra.end());
   o.duration = 1.0;
   o.dts = std::move(dts);
@@ -136,11 +138,10 @@ StabilityOptions whip_at(const std::string& speed, const std::string& name, std:
 template <class Check>
 void near_wall_cells(const std::string& speed, const std::string& name, std::vector<double> dts, std::vector<std::string> extra,
                      Check check) {
-  for (const char* o : {"obstacles.0.center=[0.17,0,0]", "contact.redetections=20", "integrator.max_iterations=200"})
-    extra.insert(extra.begin(), o);
+  for (const char* o : {"contact.redetections=20", "integrator.max_iterations=200"}) extra.insert(extra.begin(), o);
   const size_t cells = 3 * dts.size();
   std::vector<StabilityResult> r;
-  REQUIRE(run_stability(whip_at(speed, name, std::move(dts), extra), &r) == 0);
+  REQUIRE(run_stability(whip_at(speed, name, std::move(dts), extra, true), &r) == 0);
   REQUIRE(r.size() == cells);
   for (const auto& c : r) {
     CAPTURE(c.combo);

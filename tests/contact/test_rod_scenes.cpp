@@ -286,9 +286,8 @@ namespace {
 /// scenes/whip.json with its wall 14 cm nearer the axis (edge at 7 cm: the rod strikes it at
 /// every step size, bench/results/rods/figure_9_2_near_wall/), plus `overrides`.
 std::unique_ptr<AnySimulator> near_wall_whip(std::vector<std::string> overrides) {
-  for (const char* o : {"rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]", "gravity=[0,0,0]",
-                        "obstacles.0.center=[0.17,0,0]"})
-    overrides.insert(overrides.begin(), o);
+  const std::vector<std::string> setup = support::whip_sweep_overrides(true);
+  overrides.insert(overrides.begin(), setup.begin(), setup.end());
   return make_simulator(load_scene(support::source_path("scenes/whip.json"), overrides));
 }
 

@@ -6,6 +6,7 @@
 
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "framework/checkpoint.hpp"
 #include "policies/registry.hpp"
@@ -21,6 +22,16 @@ inline Scene rod_scene(const std::string& combo, const Json& rods, double dt, do
   doc["time"] = {{"dt", dt}, {"duration", duration}, {"frame_rate", 1.0 / dt}};
   doc.merge_patch(extra);
   return build_scene(doc, ".", "test");
+}
+
+/// Overrides of scenes/whip.json for the Figure 9.2 sweeps (bench/rods/figure_9_2.sh): the
+/// handle starts 0.3 rad before the wall and gravity is off, so the whip turns in the wall's
+/// plane; with `near_wall` the wall's edge is also 7 cm from the axis, so that every run
+/// strikes it (bench/results/rods/figure_9_2_near_wall/).
+inline std::vector<std::string> whip_sweep_overrides(bool near_wall = false) {
+  std::vector<std::string> o = {"gravity=[0,0,0]", "rods.0.root=[0.0477668,-0.0147760,0]", "rods.0.direction=[0.9553365,-0.2955202,0]"};
+  if (near_wall) o.push_back("obstacles.0.center=[0.17,0,0]");
+  return o;
 }
 
 /// The simulator of combination Sim inside `s` (std::bad_cast for another combination).
