@@ -41,7 +41,7 @@ constexpr const char* method_key[num_methods] = {"refactored", "per_hinge", "aut
 constexpr const char* method_label[num_methods] = {"N (refactored)", "S (per hinge, closed form)", "A (forward-mode AD)"};
 constexpr const char* pair_label[3] = {"N vs S", "N vs A", "S vs A"};
 
-// Thesis chapter 5 (spec 01 §8): Table 5.2, cloth-sphere row, and Table 5.1.
+// Thesis chapter 5 (methods/shells §8): Table 5.2, cloth-sphere row, and Table 5.1.
 constexpr double thesis_k = 1.062, thesis_ln_a[num_methods] = {-5.175, -4.129, -3.632};
 constexpr double thesis_speedup_s = 2.85, thesis_speedup_a = 4.68;
 
@@ -327,7 +327,7 @@ int bench_bending(const BenchBendingOptions& opt_in) {
   const std::string cpu = cpu_model(), git = git_describe(source_dir);
   std::string md;
   auto w = [&md](const std::string& s) { md += s; };
-  w("# weft bench bending: thesis Tables 5.1 and 5.2 (spec 01 §8)\n\n");
+  w("# weft bench bending: thesis Tables 5.1 and 5.2 (methods/shells §8)\n\n");
   const std::string states_at = fmt::format("{}", fmt::join(res.empty() ? std::vector<int>{} : res.front().state_step, ", "));
   if (obstacles)
     w(fmt::format("**Configurations: recorded states of {}** at each resolution (combo `{}`: {}; recording run dt = {:.4g} s, {} "

@@ -1,7 +1,7 @@
 #pragma once
 /// \file bench_bending.hpp
 /// `weft bench bending`: the bending benchmark of thesis chapter 5 (Tables 5.1 and 5.2,
-/// spec 01 §8). Three implementations of the same hinge energy -- refactored per triangle
+/// methods/shells §8). Three implementations of the same hinge energy -- refactored per triangle
 /// (N), closed form per hinge (S, standing in for the thesis' symbolic code) and forward-mode
 /// automatic differentiation (A) -- are timed on the 36 drape resolutions n = 11, 13, ..., 81
 /// (n x n vertices, 1 m square). The cloth-sphere contact of the thesis does not exist yet, so

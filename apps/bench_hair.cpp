@@ -147,7 +147,7 @@ std::string duration_text(double s) {
 
 std::string dt_text(double dt) { return dt >= 1e-3 ? fmt::format("{:g} ms", dt * 1e3) : fmt::format("{:g} us", dt * 1e6); }
 
-/// The thesis' stability study (spec 03 §14.2): wall time to completion, "✗" = failed.
+/// The thesis' stability study (methods/rod-contact §14.2): wall time to completion, "✗" = failed.
 constexpr const char* thesis_table =
     "| rods | method | 100 ms | 10 ms | 5 ms | 1 ms | 0.1 ms |\n"
     "|---|---|---|---|---|---|---|\n"
@@ -182,7 +182,7 @@ std::string report(const std::string& title, const std::vector<std::string>& str
     }
     md += "\n";
   }
-  md += "\n## Thesis (spec 03 §14.2): full runs on a 4-core Xeon X5650 2.67 GHz, wall time to completion\n\n";
+  md += "\n## Thesis (methods/rod-contact §14.2): full runs on a 4-core Xeon X5650 2.67 GHz, wall time to completion\n\n";
   md += thesis_table;
   md += "\n## Per run\n\n";
   md += "Contacts: rod-rod plus rod-sphere, per step after the response. Newton: constrained Newton (outer) iterations "

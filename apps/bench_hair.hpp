@@ -1,6 +1,6 @@
 #pragma once
 /// \file bench_hair.hpp
-/// `weft bench hair`: the hair-ball stability study of thesis §9.2 (Figure 9.12, spec 03
+/// `weft bench hair`: the hair-ball stability study of thesis §9.2 (Figure 9.12, methods/rod-contact
 /// §14.2, V-21 and V-22). Runs one hair-ball scene under each rod strategy at each time
 /// step for a (scaled-down) duration and reports, per run: success or failure (the
 /// classification of `weft stability`: a failed step, a non-finite state or energy, or an

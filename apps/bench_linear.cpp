@@ -37,9 +37,9 @@ using namespace benchlin;
 namespace fs = std::filesystem;
 
 constexpr int thesis_m[12] = {30, 40, 60, 80, 100, 150, 200, 300, 400, 600, 800, 1000};
-constexpr double fps = 30.0;  // the thesis's frame rate is not stated (spec 04 §10.1)
+constexpr double fps = 30.0;  // the thesis's frame rate is not stated (methods/multigrid §10.1)
 
-// Thesis Table 11.1 (spec 04 §10.3): SA+PPCG speedup vs Diag-PCG and vs PARDISO, per
+// Thesis Table 11.1 (methods/multigrid §10.3): SA+PPCG speedup vs Diag-PCG and vs PARDISO, per
 // tessellation (0 regular, 1 irregular), size (thesis_m order) and example.
 constexpr double thesis_vs_diag[2][12][5] = {
     {{0.39, 0.58, 0.55, 0.57, 0.53}, {0.45, 0.63, 0.60, 0.57, 0.51}, {0.40, 0.50, 0.54, 0.62, 0.35}, {0.43, 0.53, 0.50, 0.65, 0.35},
@@ -571,7 +571,7 @@ int bench_linear(const BenchLinearOptions& opt) {
   // ---- Markdown ----
   std::string md;
   auto w = [&md](const std::string& s) { md += s; };
-  w("# weft bench linear: thesis Table 11.1 (spec 04 §10)\n\n");
+  w("# weft bench linear: thesis Table 11.1 (methods/multigrid §10)\n\n");
   w(fmt::format("Hardware: {}; {} hardware threads; {} OpenMP threads used; heap pages {}. Compiler: {} `{}`; git {}.{}\n\n", cpu,
                 hw_threads, threads, huge_pages_status(), __VERSION__, build_flags(), git,
                 opt.quick ? " **--quick: reduced run (m = 30, 2 steps).**" : ""));

@@ -1,6 +1,6 @@
 #pragma once
 /// \file bench_linear.hpp
-/// `weft bench linear`: thesis Table 11.1 (spec 04 §10). The five examples (pinned, drooping,
+/// `weft bench linear`: thesis Table 11.1 (methods/multigrid §10). The five examples (pinned, drooping,
 /// re-entrant, dropHorizontal, dropVertical; apps/bench_linear_systems.hpp) on regular and
 /// irregular tessellations of (m+1)^2 vertices are simulated with a Baraff-Witkin linearly
 /// implicit step; every selected solver solves the same system of every step (same A, b,

@@ -1,6 +1,6 @@
 #pragma once
 /// \file bench_linear_systems.hpp
-/// The examples of thesis Table 11.1 (spec 04 §10.2) and the simulation that produces their
+/// The examples of thesis Table 11.1 (methods/multigrid §10.2) and the simulation that produces their
 /// linear systems: a Baraff-Witkin linearly implicit step (one linear solve per step),
 ///   A = M + dt^2 H(x) [+ dt^2 K_springs],   b = dt M v - dt^2 (grad V(x) - f_gravity) + dt^2 f_springs,
 /// unknown the position increment d = dt v_new. H is the sum of the PSD-projected element
@@ -58,7 +58,7 @@ namespace weft::app::benchlin {
 enum class Example { pinned, drooping, reentrant, drop_horizontal, drop_vertical };
 inline constexpr std::array<std::string_view, 5> example_names = {"pinned", "drooping", "re-entrant", "dropHorizontal",
                                                                   "dropVertical"};
-/// Frames the thesis averaged over (spec 04 §10.1).
+/// Frames the thesis averaged over (methods/multigrid §10.1).
 inline constexpr std::array<int, 5> thesis_frames = {10, 10, 10, 15, 25};
 
 /// The box of the drop examples: top face at z = top, square footprint and square hole.

@@ -98,7 +98,7 @@ int main(int argc, char** argv) {
 
   app::BenchLinearOptions bench_linear;
   auto* cmd_bench_linear = cmd_bench->add_subcommand(
-      "linear", "linear solvers on the cloth systems of thesis Table 11.1: direct, Diag-PCG, SA+PPCG, ... (spec 04 §10)");
+      "linear", "linear solvers on the cloth systems of thesis Table 11.1: direct, Diag-PCG, SA+PPCG, ... (methods/multigrid §10)");
   cmd_bench_linear->add_option("--examples", bench_linear.examples, "pinned drooping re-entrant dropHorizontal dropVertical (default: all)");
   cmd_bench_linear->add_option("--tessellations", bench_linear.tessellations, "regular irregular (default: both)");
   cmd_bench_linear->add_option("--sizes", bench_linear.sizes, "grid intervals m, (m+1)^2 vertices (default: 30 40 60 80 100 150 200 300 400 600 800 1000)")

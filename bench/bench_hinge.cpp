@@ -1,4 +1,4 @@
-// Spec 02 E2 / thesis §6.5: the folded hinge, one step at dt = 1/240, 5/240, 10/240 s,
+// methods/integration-and-contact E2 / thesis §6.5: the folded hinge, one step at dt = 1/240, 5/240, 10/240 s,
 // solved to a relative residual of 1e-10 by root finding and by incremental-potential
 // minimisation with each globalisation. Prints iterations side by side with the thesis and
 // the spec's independent reference, and writes every convergence history as JSON lines.
@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
     }
     fmt::print("{}\n", row);
   }
-  fmt::print("\nspec 02 E2 reference (mpmath, 30-40 digits): pure Newton 27 / 26 / 23; Armijo on E_inc with |eig| clamp"
+  fmt::print("\nmethods/integration-and-contact E2 reference (mpmath, 30-40 digits): pure Newton 27 / 26 / 23; Armijo on E_inc with |eig| clamp"
              " 85-91 / 195-204 / >300; with shift K + mu M 82 / >200 / >200; backtracking on |f|^2 162 / stalls / stalls.\n"
              "thesis (Mathematica, Figs. 6.2-6.3): minimisation 2-5x fewer iterations than root finding, which needed 50-digit"
              " arithmetic.\n");

@@ -13,7 +13,7 @@ from pathlib import Path
 
 EXAMPLES = ["pinned", "drooping", "re-entrant", "dropHorizontal", "dropVertical"]
 M = [30, 40, 60, 80, 100, 150, 200, 300, 400, 600, 800, 1000]
-# Thesis Table 11.1 (spec 04 §10.3), regular tessellation: (vs Diag-PCG, vs PARDISO) per m and example.
+# Thesis Table 11.1 (methods/multigrid §10.3), regular tessellation: (vs Diag-PCG, vs PARDISO) per m and example.
 THESIS_REGULAR = {
     30: [(0.39, 0.76), (0.58, 0.72), (0.55, 0.72), (0.57, 0.61), (0.53, 0.61)],
     40: [(0.45, 1.06), (0.63, 0.99), (0.60, 0.95), (0.57, 0.75), (0.51, 0.80)],

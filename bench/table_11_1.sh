@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduce thesis Table 11.1 (spec 04 §10.3) with `weft bench linear`, in runs that fit a
+# Reproduce thesis Table 11.1 (methods/multigrid §10.3) with `weft bench linear`, in runs that fit a
 # 24 GiB, 2-core machine in about 80 minutes. Every run compares its solvers on the same
 # systems, so each speedup is a ratio measured within one run; SA+PPCG is in every run.
 #   B1/B2  pinned, regular, 641,601 and 1,002,001 vertices, in separate runs: CHOLMOD's factor

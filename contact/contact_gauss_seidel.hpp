@@ -1,16 +1,16 @@
 #pragma once
 /// \file contact_gauss_seidel.hpp
 /// Projected Gauss-Seidel over contacts with the exact single-contact Coulomb solve
-/// (spec 03 §10.1, §10.3; `solve_coulomb`, coulomb.hpp), on a Delassus operator that is
+/// (methods/rod-contact §10.1, §10.3; `solve_coulomb`, coulomb.hpp), on a Delassus operator that is
 /// either an explicit matrix or a compliance that is only applied. Shared by the cloth
 /// strategies (linear_compliance.hpp) and the rods (impulse, linear compliance, ADONIS).
 ///
-/// The problem (spec 03 Eq. 7.4): responses r_k (local frame of contact k, normal first),
+/// The problem (methods/rod-contact Eq. 7.4): responses r_k (local frame of contact k, normal first),
 /// u = W r + u_f with W = H D H^T, H the contact Jacobian (3 rows per contact: normal and
 /// two tangents, stencil weights), D the compliance (M^-1 for impulses, A^-1 for linear
 /// compliance); every (r_k, u_k) satisfies Signorini-Coulomb.
 ///
-/// The operator (`DelassusOperator`) hides how u is kept: the incremental form of spec 03
+/// The operator (`DelassusOperator`) hides how u is kept: the incremental form of methods/rod-contact
 /// §10.3 keeps a running state (x = v_free + D H^T r on the DoFs, or u = W r + u_f) and
 /// each update costs one block column. A sweep, per contact k in order:
 ///     u_k = op.velocity(k);  b_k = u_k - W_kk r_k;  r = solve_coulomb(W_kk, b_k, mu_k, r_k);

@@ -1,6 +1,6 @@
 #pragma once
 /// \file coulomb.hpp
-/// The single-contact Coulomb problem and its solver (spec 03 §9), shared by every
+/// The single-contact Coulomb problem and its solver (methods/rod-contact §9), shared by every
 /// strategy that runs Gauss-Seidel over contacts (contact_gauss_seidel.hpp): impulses
 /// (D = M^-1), linear compliance (D = A^-1) and ADONIS, on cloth and on rods.
 ///
@@ -11,19 +11,19 @@
 ///     0 <= r_n  _|_  u_n >= 0,   r_t = argmin { r_t . u_t : |r_t| <= mu r_n }.
 /// Units are the caller's; in this project r is an impulse [N s] and u a velocity [m/s]
 /// (`linear_compliance.hpp`); the rods may use displacements and multipliers instead.
-/// The solution is one of (spec 03 §9.1):
+/// The solution is one of (methods/rod-contact §9.1):
 ///  - take-off: r = 0, b_n >= 0;
 ///  - stick:    u = 0, r = -W^-1 b inside the cone;
 ///  - slide:    u_n = 0, |r_t| = mu r_n > 0, r_t = -mu r_n u_t / |u_t|.
 ///
-/// Residual (spec 03 §9.2): the Fischer-Burmeister function on the second-order cone after
+/// Residual (methods/rod-contact §9.2): the Fischer-Burmeister function on the second-order cone after
 /// De Saxcé's change of variable u~ = u + mu |u_t| e_n, with x = s (mu r_n, r_t) and
 /// y = (u~_n / mu, u~_t) mapped to the unit cone, phi = x + y - (x o x + y o y)^1/2 (Jordan
 /// product, spectral square root); |phi|_2 is the residual. s = tr(W) / 3 scales the
 /// response into the units of u, so the residual and its tolerance are velocities. For
 /// mu = 0 the scalar FB function on the normal components, together with s |r_t|.
 ///
-/// Solver (spec 03 §9.3, the "hybrid" strategy of Daviet, Bertails-Descoubes & Boissieux
+/// Solver (methods/rod-contact §9.3, the "hybrid" strategy of Daviet, Bertails-Descoubes & Boissieux
 /// 2011 / So-bogus): 1. take-off if b_n >= 0; 2. stick if -W^-1 b lies in the cone
 /// (W solved with full pivoting; a singular W is accepted when the least-squares r meets
 /// W r + b = 0); 3. slide: a damped semismooth Newton iteration on phi_FB(r) (central

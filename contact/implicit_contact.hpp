@@ -12,7 +12,7 @@
 ///    soft or a pair met during the step without being near at its start or in the
 ///    prediction; it guarantees no cloth-cloth intersection as `Impulse` does.
 ///
-/// **Repulsion springs** (spec 02 §11.1; BW98 §6 "cloth/cloth collisions"). In `begin_step`
+/// **Repulsion springs** (methods/integration-and-contact §11.1; BW98 §6 "cloth/cloth collisions"). In `begin_step`
 /// the pairs (vertex-triangle, edge-edge; contact/detection/proximity.hpp) within the
 /// thickness h at the start positions x0 or at the prediction x0 + dt v0 become springs
 /// for the step, each with its stencil (4 vertices), weights gamma and unit normal n from

@@ -1,14 +1,14 @@
 #pragma once
 /// \file impulse.hpp
 /// `Impulse`: decoupled, zeroth-order contact response on cloth after the implicit solve
-/// (spec 03 §8 (a), compliance D = M^-1; Bridson, Fedkiw & Anderson 2002, "Robust treatment
+/// (methods/rod-contact §8 (a), compliance D = M^-1; Bridson, Fedkiw & Anderson 2002, "Robust treatment
 /// of collisions, contact and friction for cloth animation"), with Provot / Bridson rigid
 /// impact zones as the failsafe. No potential terms: the integrator advances the elastic
 /// dynamics alone, then `end_step` corrects the velocities.
 ///
 /// Conventions. x0 are the start-of-step positions (kept by `begin_step`), v the step
 /// velocities and x1 = x0 + dt v the end positions; every correction changes v and moves
-/// x1 consistently (backward Euler's v_{k+1} = d / dt, spec 02 §13: the response is fully
+/// x1 consistently (backward Euler's v_{k+1} = d / dt, methods/integration-and-contact §13: the response is fully
 /// inelastic, no bounce). Pinned and scripted vertices have infinite mass: impulses never
 /// change them. h is the contact thickness, kept to obstacles and between cloth layers.
 ///
@@ -16,21 +16,21 @@
 ///  1. Obstacles (analytic sphere, box, plane with scripted motion; `ObstaclePose`), per
 ///     free vertex, independent of the others:
 ///     - end-of-step contact: phi1 = phi(x1, t1) < h. The normal velocity changes by
-///       dun = (h - phi1) / dt along the end-of-step normal n1 (spec 02 §11.2: the normal
+///       dun = (h - phi1) / dt along the end-of-step normal n1 (methods/integration-and-contact §11.2: the normal
 ///       of a cloth-object contact is taken at the end of the step), which puts the vertex
 ///       at distance h exactly for planes and spheres (the distance grows at unit rate
 ///       along its gradient). The relative velocity over the step, (h - phi0) / dt, no
 ///       longer approaches when the vertex started at the thickness: resting contact is
 ///       inelastic, and a vertex that started farther lands on the thickness in the step
-///       instead of stopping short (the gap-aware variant of spec 02 §11.4).
-///     - Coulomb friction (spec 02 §14.1, Bridson 2002 §7.2): the tangential velocity
+///       instead of stopping short (the gap-aware variant of methods/integration-and-contact §11.4).
+///     - Coulomb friction (methods/integration-and-contact §14.1, Bridson 2002 §7.2): the tangential velocity
 ///       relative to the obstacle, u_t = (v - w) - ((v - w).n) n, becomes
 ///       max(0, 1 - mu dun / |u_t|) u_t (static when it would stop, kinetic otherwise),
 ///       mu = the obstacle's `friction`, w = the obstacle's velocity at the contact point,
 ///       (p(t1) - p(t0)) / dt for the material point p of the obstacle under the contact.
 ///       On a plane inclined by alpha a vertex resting at the thickness sticks iff
 ///       tan(alpha) <= mu and otherwise slides with acceleration g (sin alpha - mu cos alpha)
-///       (spec 02 E7, exact in this discretisation).
+///       (methods/integration-and-contact E7, exact in this discretisation).
 ///     - crossing during the step (a fast vertex or obstacle): the relative path
 ///       (x0 + s (x1 - x0), pose(t0 + s dt)), s in [0, 1], is checked by conservative
 ///       advancement on phi with a bound L on its rate (vertex displacement plus the
@@ -44,7 +44,7 @@
 ///     obstacles); `max_penetration` reports what remains.
 ///  2. Cloth-cloth repulsion (`self_contact`): proximity pairs (vertex-triangle and
 ///     interior edge-edge, contact/detection/proximity.hpp) within h at the end positions
-///     x1, with their weights gamma and normal n (spec 02 §11.1). A pair whose material
+///     x1, with their weights gamma and normal n (methods/integration-and-contact §11.1). A pair whose material
 ///     points were on the other side of n at the start (n . g(x0) <= 0: it crossed during
 ///     the step) is left to step 3, and a pair whose material points are closer than h in
 ///     the rest state (|sum_j gamma_j X_j| < h: a fine or irregular mesh) is no contact.
@@ -55,7 +55,7 @@
 ///  3. Iterated CCD impulses (Bridson 2002 §7.4): up to `ccd_sweeps` sweeps of continuous
 ///     collision detection on x0 -> x1 (contact/detection/ccd.hpp, tolerance `eta`), each
 ///     followed by impulses in detection order on the hits, with the weights and normal at
-///     the time of impact (spec 02 §11.2): the separation along n, s(x) = n . sum gamma_j x_j,
+///     the time of impact (methods/integration-and-contact §11.2): the separation along n, s(x) = n . sum gamma_j x_j,
 ///     is made to end at min(h, s(x0)) or more, dun = max(0, min(h, s(x0)) - s(x1)) / dt
 ///     (the pair stops at the thickness, or does not approach further if it started
 ///     closer), plus friction; then step 1 again. Detection is repeated after every sweep;

@@ -15,7 +15,7 @@
 namespace weft::contact::impulse {
 
 /// Coulomb friction on a relative tangential velocity u_t, given the change dun >= 0 of the
-/// relative normal velocity that the normal impulse made (spec 02 §14.1, Bridson 2002 §7.2):
+/// relative normal velocity that the normal impulse made (methods/integration-and-contact §14.1, Bridson 2002 §7.2):
 ///   |u_t| <= mu dun:  u_t' = 0                              (static: the contact sticks)
 ///   otherwise:        u_t' = (1 - mu dun / |u_t|) u_t        (kinetic: slides, slower)
 /// \returns u_t'.
@@ -29,7 +29,7 @@ struct StencilImpulse {
   bool sticking = false; ///< friction stopped the relative tangential motion
 };
 
-/// Changes the relative velocity u = sum_j gamma_j v_j of a contact stencil (spec 02
+/// Changes the relative velocity u = sum_j gamma_j v_j of a contact stencil (methods/integration-and-contact
 /// §11.1: gamma = (1, -w0, -w1, -w2) vertex-triangle, (1 - s, s, -(1 - t), -t) edge-edge,
 /// sum gamma = 0) by dun >= 0 along the unit normal n plus Coulomb friction (`coulomb`
 /// with the tangential part of u before the impulse). With inverse masses w_j (0 for

@@ -2,7 +2,7 @@
 /// \file linear_compliance.hpp
 /// `LinearCompliance`: contact response after the implicit solve through the compliance
 /// of the step's linear system, D = A^-1 with A = M~ + dt^2 K the last Newton matrix
-/// (spec 03 §8 (b), "linear compliance": Otaduy et al. 2009 / the thesis' chapter 9
+/// (methods/rod-contact §8 (b), "linear compliance": Otaduy et al. 2009 / the thesis' chapter 9
 /// baseline), frictional contacts solved exactly on the smooth cone by Gauss-Seidel over
 /// single-contact Coulomb problems (contact_gauss_seidel.hpp, coulomb.hpp), with the
 /// `Impulse` pipeline (CCD impulses and rigid impact zones) as the failsafe. No potential
@@ -10,7 +10,7 @@
 ///
 /// Conventions (those of `Impulse`, impulse.hpp): x0 the start-of-step positions, v the
 /// step velocities, x1 = x0 + dt v; every correction changes v and moves x1 with it (fully
-/// inelastic, spec 02 §13). Pinned and scripted vertices have infinite mass: their columns
+/// inelastic, methods/integration-and-contact §13). Pinned and scripted vertices have infinite mass: their columns
 /// of the contact Jacobian are zero, their motion enters the free velocity u_f.
 ///
 /// Units. The backward Euler residual with a contact force F added is
@@ -26,7 +26,7 @@
 /// Algorithm of `end_step`:
 ///  1. Contacts at the end positions x1 (the integrator's result), in a fixed order:
 ///     - obstacles: per free vertex i and obstacle, phi1 = phi(x1_i, t1) < h; frame from
-///       the end-of-step normal n1 (spec 02 §11.2); u_f = (-(h - phi1) / dt,
+///       the end-of-step normal n1 (methods/integration-and-contact §11.2); u_f = (-(h - phi1) / dt,
 ///       t1 . (v_i - w), t2 . (v_i - w)), w the obstacle's velocity at the contact point;
 ///       mu = the obstacle's `friction`. u_n >= 0 then means n1 . Delta v_i >=
 ///       (h - phi1) / dt: the vertex ends at the thickness or beyond (to first order; exact

@@ -383,8 +383,8 @@ void ObstacleConstraints::respond(State& s, double dt, ContactReport& r) {
           k.slip = vt.normalized();
         }
       }
-      // A contact that stays holds C = 0 and its hidden constraint grad C qdot = 0 (spec
-      // 02 §10.1) at the end of the step. A single linearised step leaves the vertex off a
+      // A contact that stays holds C = 0 and its hidden constraint grad C qdot = 0 (methods/integration-and-contact
+      // §10.1) at the end of the step. A single linearised step leaves the vertex off a
       // curved obstacle by O(step^2 / R), and v = d / dt keeps O(dt) of relative normal
       // velocity there (the chord of the step), or the approach of a contact made during
       // the step (moved onto the surface by the first iterate): an inelastic contact keeps

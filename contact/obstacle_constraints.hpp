@@ -2,7 +2,7 @@
 /// \file obstacle_constraints.hpp
 /// `ObstacleConstraints`: contact with the scene's analytic obstacles (sphere, box, plane,
 /// all with scripted motion) as equality constraints inside the implicit solve, released
-/// when their force pulls (Baraff & Witkin 1998 §5; spec 02 §10, spec 04 §7). The linear
+/// when their force pulls (Baraff & Witkin 1998 §5; methods/integration-and-contact §10, methods/multigrid §7). The linear
 /// solver enforces them: ModifiedPcg filters, Ppcg and Direct prefilter (linear/).
 ///
 /// **Active set.** A contact is a (free vertex i, obstacle o) pair. `begin_step` makes one
@@ -44,7 +44,7 @@
 /// values left at later iterates are what a partial line-search step or the curvature of
 /// the obstacle left (the gap is asked for again at the next iterate).
 ///
-/// **Friction** (Coulomb, mu = the obstacle's `friction`; spec 02 §14), per contact mode:
+/// **Friction** (Coulomb, mu = the obstacle's `friction`; methods/integration-and-contact §14), per contact mode:
 ///  - *stick* (static friction): a full 3D constraint, dx_i = x*_i - x_i with the anchor
 ///    x*_i = T(x_k,i) moved along the normal onto phi = delta, T the obstacle's rigid motion
 ///    over the step: the vertex moves with the obstacle. Kept while the reaction R_i (3D)
@@ -81,7 +81,7 @@
 ///     stays in contact and keeps its friction mode);
 ///  3. updates the friction modes (above);
 ///  4. holds every contact that stays on its constraint and its hidden constraint
-///     (spec 02 §10.1: C = 0 and grad C qdot = 0): it moves the vertex onto phi = delta
+///     (methods/integration-and-contact §10.1: C = 0 and grad C qdot = 0): it moves the vertex onto phi = delta
 ///     (a single linearised step leaves it off a curved obstacle by O(step^2 / R)) and
 ///     zeroes its relative normal velocity (v = d / dt keeps the chord's O(dt) normal part
 ///     on a curved obstacle, or the approach of a contact made during the step: an

@@ -3,7 +3,7 @@
 /// `BandMatrix`: a square n x n matrix with lower and upper half-bandwidth k, stored in the
 /// LAPACK general band layout that `dgbtrf` factorises in place (with the k extra rows its
 /// fill-in needs). The Hessian of one discrete elastic rod (4V - 1 interleaved DoFs) has
-/// k = 10 (spec 03 §13, V-03).
+/// k = 10 (methods/rod-contact §13, V-03).
 ///
 /// Storage: column major, ldab = 3k + 1 rows per column, A(i, j) at ab[(2k + i - j) + j ldab]
 /// for |i - j| <= k; rows 0..k-1 of each column are LAPACK's workspace for the U fill-in and

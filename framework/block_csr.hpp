@@ -58,7 +58,7 @@ class BlockCsr {
   void scale(double s);
   /// Replace rows and columns of the marked block rows by identity * diag_value:
   /// the Dirichlet filter for pinned and scripted vertices (keeps symmetry). A negative
-  /// diag_value keeps each row's scale, sigma_i = tr(A_ii)/3 (the prefilter's Sigma, spec 04
+  /// diag_value keeps each row's scale, sigma_i = tr(A_ii)/3 (the prefilter's Sigma, methods/multigrid
   /// §7.3: the decoupled eigenvalues then sit inside the spectrum whatever the units).
   void filter_rows(const std::vector<unsigned char>& fixed, double diag_value = 1.0);
   /// ||A - A^T||_F / ||A||_F.

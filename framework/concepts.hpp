@@ -54,7 +54,7 @@ concept EnergyModel = Component<M> && std::constructible_from<M, const Scene&, c
     };
 
 /// Optional hook of an energy model: called once before each step with the state at its
-/// start and the time at its end, e.g. to update an animated rest state (spec 01 §5).
+/// start and the time at its end, e.g. to update an animated rest state (methods/shells §5).
 template <class M>
 concept HasBeginStep = requires(M& m, const State& s, double t_end) { m.begin_step(s, t_end); };
 
@@ -97,7 +97,7 @@ template <class L>
 concept HasSolveContext = requires(L& l, const SolveContext& ctx) { l.set_context(ctx); };
 
 /// Optional hook of a contact strategy: equality constraints inside the implicit solve
-/// (Baraff & Witkin 1998; spec 02 §10, spec 04 §7). The integrators hand them to the
+/// (Baraff & Witkin 1998; methods/integration-and-contact §10, methods/multigrid §7). The integrators hand them to the
 /// linear solver, which must then model `HasSolveContext` (a static_assert says so).
 ///   `cc.constraints(trial, set)`: resets `set` to trial's vertex count and fills it with
 ///     the constraints n^T dx_i = value on the increment dx of the Newton direction at the
@@ -154,7 +154,7 @@ struct SystemSolve {
 };
 
 /// Optional hook of a contact strategy that applies the implicit system's compliance
-/// D = A^-1 in its response (spec 03 §8 (b), "linear compliance"): after a successful
+/// D = A^-1 in its response (methods/rod-contact §8 (b), "linear compliance"): after a successful
 /// step and before `end_step`, the integrators call `c.accept_system(solve)`.
 template <class C>
 concept HasSystemCompliance = requires(C& c, const SystemSolve& s) { c.accept_system(s); };

@@ -1,13 +1,13 @@
 #pragma once
 /// \file constraints.hpp
-/// Per-vertex equality constraints of the linear systems (Baraff-Witkin style, spec 04 §1):
+/// Per-vertex equality constraints of the linear systems (Baraff-Witkin style, methods/multigrid §1):
 /// vertex i has k_i in {0,1,2,3} orthonormal directions n_{i,m} along which its unknown is
 /// prescribed, n_{i,m}^T x_i = value_{i,m}. The filter S_i = I - sum_m n_{i,m} n_{i,m}^T
 /// projects onto the constraint null space; z_i = sum_m value_{i,m} n_{i,m} holds the
 /// prescribed part ((I - S_i) z_i = z_i).
 ///
 /// Contact code emits a `ConstraintSet`; the linear solvers (not the contact code) build
-/// the filters from it and own the prefiltering (spec 04 §13).
+/// the filters from it and own the prefiltering (methods/multigrid §13).
 #include <Eigen/Core>
 
 #include <cmath>

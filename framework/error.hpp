@@ -1,6 +1,6 @@
 #pragma once
 /// \file error.hpp
-/// The three error channels of weft (see STYLE.md §5):
+/// The three error channels of weft (docs/architecture.md, "Errors"):
 ///  - configuration errors throw `ConfigError` before any work starts;
 ///  - numerical outcomes are returned in reports (`Status`, see status.hpp);
 ///  - broken invariants fail `WEFT_ASSERT` (always on in tests and Debug builds).

@@ -1,7 +1,7 @@
 #pragma once
 /// \file rod_simulator.hpp
 /// `RodSimulator<Model, Integrator, Contact, Linear>`: elastic rods (hair) with frictional
-/// contact, composed at compile time (spec 03 §10.8, §16). Each rod is an independent
+/// contact, composed at compile time (methods/rod-contact §10.8, §16). Each rod is an independent
 /// system in the interleaved DoF layout of framework/rod_set.hpp with a banded Hessian:
 ///
 ///   1. per rod, in parallel: the unconstrained backward Euler step d_DEL (the integrator);

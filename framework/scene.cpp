@@ -25,7 +25,7 @@ Checker ShellMaterial::validate(const std::string& path) const {
       if (value) c.fail(fmt::format("{}.{} is only read when model = orthotropic: set model = \"orthotropic\" or remove it", path, key));
     return c;
   }
-  // Positive definiteness at rest (spec 01 §3.2): Y_x > 0, eta > 0, G > 0, eta nu^2 < 1.
+  // Positive definiteness at rest (methods/shells §3.2): Y_x > 0, eta > 0, G > 0, eta nu^2 < 1.
   for (const auto& [key, value] : {std::pair{"youngs_modulus_warp", youngs_modulus_warp},
                                    std::pair{"youngs_modulus_weft", youngs_modulus_weft}, std::pair{"shear_modulus", shear_modulus}})
     if (!value) c.fail(fmt::format("{}.{} is required when model = orthotropic", path, key));
@@ -419,7 +419,7 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
       errors.push_back(fmt::format("cloths.{}.mesh.initial_file: {}", c, e.what()));
     }
   }
-  // Warp directions of orthotropic cloths, per face (spec 01 §10.2: a 3D unit vector in the
+  // Warp directions of orthotropic cloths, per face (methods/shells §10.2: a 3D unit vector in the
   // rest plane). Generated sheets carry their (u, v) coordinates as texture coordinates, so
   // both sources go through `texture_directions`.
   scene.face_warp.assign(static_cast<size_t>(nf), Eigen::Vector3d::Zero());

@@ -24,7 +24,7 @@
 
 namespace weft {
 
-/// Constitutive model of a cloth's membrane (spec 01 §3).
+/// Constitutive model of a cloth's membrane (methods/shells §3).
 enum class MaterialModel { isotropic, orthotropic };
 inline constexpr std::array<std::string_view, 2> material_model_names = {"isotropic", "orthotropic"};
 /// Where the warp direction of an orthotropic cloth comes from.
@@ -32,17 +32,17 @@ enum class WarpFrom { angle, uv };
 inline constexpr std::array<std::string_view, 2> warp_from_names = {"angle", "uv"};
 
 /// Thin-shell material of one cloth: isotropic (Y, nu), or orthotropic from the engineering
-/// constants of a woven fabric (spec 01 §3.2).
+/// constants of a woven fabric (methods/shells §3.2).
 ///
-/// **Warp/weft convention** (spec 01 §3.2 leaves the assignment of the structural direction
+/// **Warp/weft convention** (methods/shells §3.2 leaves the assignment of the structural direction
 /// ahat to warp or weft to the project): the spec's x axis, ahat_perp, is the **warp**; its y
 /// axis, ahat, is the **weft** (in the rest plane, perpendicular to the warp). Hence
 ///   Y   = Y_x  = youngs_modulus_warp,      eta = Y_y / Y_x = youngs_modulus_weft / youngs_modulus_warp,
 ///   nu  = nu_xy = poisson_ratio: the strain ratio -eps_weft / eps_warp under uniaxial stress
 ///         along the warp (the weft->warp ratio is nu_yx = eta nu, by reciprocity nu_xy/Y_x = nu_yx/Y_y),
 ///   G   = 2 shear_modulus: the thesis' G is the Voigt entry for tensor shear strain, twice the
-///         engineering shear modulus G12 (spec 01 §0 trap 4).
-/// Positive definiteness at rest (spec 01 §2.3, §3.2): Y_warp > 0, Y_weft > 0, G12 > 0 and
+///         engineering shear modulus G12 (methods/shells §0 trap 4).
+/// Positive definiteness at rest (methods/shells §2.3, §3.2): Y_warp > 0, Y_weft > 0, G12 > 0 and
 /// eta nu^2 < 1; isotropic: Y > 0 and -1 < nu < 1 (the 2D plane-stress bound, not nu < 1/2).
 struct ShellMaterial {
   MaterialModel model = MaterialModel::isotropic;
@@ -62,7 +62,7 @@ struct ShellMaterial {
   double eta() const {
     return orthotropic() ? youngs_modulus_weft.value_or(0) / youngs_modulus_warp.value_or(0) : 1.0;
   }
-  /// Hinge bending stiffness k [J] (spec 01 Eq. 5.11): `bending_stiffness` if given, else half
+  /// Hinge bending stiffness k [J] (methods/shells Eq. 5.11): `bending_stiffness` if given, else half
   /// the flexural rigidity, k = D / 2:
   ///   isotropic:   k = Y h^3 / (24 (1 - nu^2));
   ///   orthotropic: k = sqrt(D_warp D_weft) / 2 = sqrt(Y_warp Y_weft) h^3 / (24 (1 - nu_xy nu_yx)),
@@ -124,7 +124,7 @@ struct RestKeyframe {
   }
 };
 
-/// Animated rest state of one cloth (spec 01 §5): every selected edge has the rest length
+/// Animated rest state of one cloth (methods/shells §5): every selected edge has the rest length
 ///   lbar_e(t) = lbar_e (1 - w + w s(t)),
 /// with s(t) piecewise linear through the keyframes (strictly increasing times) and constant
 /// before the first and after the last. Edges are selected when both end points' rest
@@ -222,7 +222,7 @@ struct ClothSpec {
   ShellMaterial material;
   std::vector<PinSpec> pins;
   Eigen::Vector3d initial_velocity = Eigen::Vector3d::Zero();  ///< [m/s]
-  RestStateSpec rest_state;        ///< animated rest state (spec 01 §5); static when it has no keyframes
+  RestStateSpec rest_state;        ///< animated rest state (methods/shells §5); static when it has no keyframes
   template <class V>
   void visit(V& v) {
     v.field("name", name, {Unit::none, Range::any(), "name used in output files"});

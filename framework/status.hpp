@@ -36,7 +36,7 @@ struct LinearReport {
   int negative_pivots = -1;       ///< LDL^T only: count of negative D entries (-1: unknown)
   bool indefinite = false;        ///< the solver found the matrix not positive definite
   std::string message;
-  // Iterative solvers (spec 04 §8). The criterion is ||r_i||_{M^-1} / ||r_0||_{M^-1} < eps.
+  // Iterative solvers (methods/multigrid §8). The criterion is ||r_i||_{M^-1} / ||r_0||_{M^-1} < eps.
   std::vector<double> residual_history;  ///< ||r_i||_{M^-1} / ||r_0||_{M^-1}, i = 0..N (last solve)
   double convergence_rate = 0;    ///< geometric mean rate (||r_N|| / ||r_0||)^(1/N) (mean over solves when summed)
   double energy_error = -1;       ///< ||x - x*||_A / ||x*||_A against a known solution (-1: not computed)

@@ -10,7 +10,7 @@
 
 namespace weft {
 
-/// Stencil of one interior edge, labelled as in spec 01 §6.1: triangle T = (x0, x1, x2)
+/// Stencil of one interior edge, labelled as in methods/shells §6.1: triangle T = (x0, x1, x2)
 /// counter-clockwise, triangle T~ = (x3, x2, x1); the hinge edge is x1 -> x2 as traversed
 /// by T; x0 and x3 are the wing vertices.
 struct Hinge {

@@ -1,7 +1,7 @@
 #pragma once
 /// \file backward_euler_root.hpp
 /// `BackwardEulerRoot`: backward Euler as root finding on the discrete Euler-Lagrange
-/// residual f(d) = 0 (spec 02 §4), Newton with the residual merit 1/2 ||f||^2 and its own
+/// residual f(d) = 0 (methods/integration-and-contact §4), Newton with the residual merit 1/2 ||f||^2 and its own
 /// backtracking (§6.3). The comparison policy of thesis ch. 6: the same Newton matrix as
 /// `IncrementalPotential`, a different merit.
 #include <cmath>

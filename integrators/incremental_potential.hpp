@@ -1,9 +1,9 @@
 #pragma once
 /// \file incremental_potential.hpp
 /// `IncrementalPotential`: backward Euler as minimisation of the incremental potential
-/// (spec 02 §5): Newton on E_inc (step_system.hpp) with the Hessian choice and the line
+/// (methods/integration-and-contact §5): Newton on E_inc (step_system.hpp) with the Hessian choice and the line
 /// search of `NewtonParams` (newton.hpp). Stops when ||f||_{M~^-1} <= rel ||f(d0)||_{M~^-1}
-/// + length_tolerance sqrt(free mass) (spec 02 §6.10).
+/// + length_tolerance sqrt(free mass) (methods/integration-and-contact §6.10).
 #include <Eigen/Core>
 
 #include <string>

@@ -1,7 +1,7 @@
 #pragma once
 /// \file line_search.hpp
 /// Line searches on phi(s) = merit(d + s p). They see only the 1D function, so the same
-/// code serves every integrator and merit (spec 02 §6).
+/// code serves every integrator and merit (methods/integration-and-contact §6).
 #include <array>
 #include <cmath>
 #include <functional>
@@ -86,7 +86,7 @@ LineSearchResult more_thuente(const PhiWithSlope& phi, double phi0, double slope
 
 /// Hager & Zhang (2005) line search: Wolfe or approximate Wolfe conditions. The
 /// approximate conditions test derivatives only, so the search still decides where
-/// phi(s) - phi(0) is below round-off (the cancellation of spec 02 §6.6).
+/// phi(s) - phi(0) is below round-off (the cancellation of methods/integration-and-contact §6.6).
 LineSearchResult hager_zhang(const PhiWithSlope& phi, double phi0, double slope0, const LineSearchParams& prm);
 
 }  // namespace weft::integrators

@@ -1,7 +1,7 @@
 #pragma once
 /// \file linearly_implicit.hpp
 /// `LinearlyImplicit`: one Newton step of backward Euler from d = 0 (the Baraff-Witkin
-/// baseline, spec 02 §4 "LIE"): (M~ + dt^2 H(q_k)) d = dt M v_k - dt^2 grad V(q_k).
+/// baseline, methods/integration-and-contact §4 "LIE"): (M~ + dt^2 H(q_k)) d = dt M v_k - dt^2 grad V(q_k).
 /// No iteration and no line search; the residual left after the step is reported.
 /// With contact constraints (`HasConstraints`) the step starts from d0 = z, the vertices
 /// in contact moved onto their constraints (BW98's position correction), and solves the

@@ -340,7 +340,7 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
         problem.gradient(trial, ft);
         return std::pair<double, double>(value, ft.dot(dir));
       };
-      // Below round-off (spec 02 §6.6, mitigation 2): when the full step's predicted decrease
+      // Below round-off (methods/integration-and-contact §6.6, mitigation 2): when the full step's predicted decrease
       // is too small for E_inc to resolve, value comparisons are noise; accept the full step
       // on the derivative test of approximate Wolfe instead (the slope along the direction
       // must shrink in magnitude and stay a descent-side slope).

@@ -3,7 +3,7 @@
 /// The Newton core shared by the integrators: the nonlinear system of one time step is
 /// seen through `NewtonProblem` (a handful of calls per iteration, never per element), so
 /// the loop, the Hessian fallbacks and the line searches are compiled once, in newton.cpp,
-/// and serve every simulator as well as small test problems (the 1D example of spec 02
+/// and serve every simulator as well as small test problems (the 1D example of methods/integration-and-contact
 /// §5.3).
 #include <Eigen/Core>
 
@@ -76,7 +76,7 @@ class NewtonProblem {
 enum class HessianChoice {
   adaptive,   ///< exact while K = M~ + dt^2 H is positive definite, else K + tau M~ with the
               ///< smallest tau in {min_shift, 10 min_shift, ..., max_shift} that is, else projection
-  exact,      ///< always exact; an ascent direction is reversed (spec 02 §16 E1), a zero-slope one
+  exact,      ///< always exact; an ascent direction is reversed (methods/integration-and-contact §16 E1), a zero-slope one
               ///< replaced by -M~^-1 f
   projected,  ///< always per-element PSD projection
 };
@@ -157,12 +157,12 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
                                     const NewtonParams& prm, NewtonReport& report, LinearReport& linear);
 
 /// One Newton step from d with a full step (the linearly implicit method when d = 0,
-/// spec 02 §4 "LIE"); the direction uses the Hessian choice of `prm`. Never fails for lack
+/// methods/integration-and-contact §4 "LIE"); the direction uses the Hessian choice of `prm`. Never fails for lack
 /// of convergence: the residual after the step is reported, not enforced.
 NewtonFailure linearized_step(NewtonProblem& problem, Eigen::VectorXd& d, const NewtonParams& prm, double& shift_hint,
                               NewtonReport& report, LinearReport& linear);
 
-/// Root finding on f(d) = 0 (spec 02 §4): Newton with the exact Jacobian K (shifted by
+/// Root finding on f(d) = 0 (methods/integration-and-contact §4): Newton with the exact Jacobian K (shifted by
 /// tau M~ only where it is singular) and backtracking on the residual merit 1/2 ||f||^2
 /// (§6.3; each trial costs a gradient, no energy). The comparison policy of the thesis.
 /// `prm.hessian` and `prm.line_search` apply (full_step = pure Newton).

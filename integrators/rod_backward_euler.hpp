@@ -1,6 +1,6 @@
 #pragma once
 /// \file rod_backward_euler.hpp
-/// `RodBackwardEuler`: the unconstrained time step of one elastic rod (spec 03 §3), backward
+/// `RodBackwardEuler`: the unconstrained time step of one elastic rod (methods/rod-contact §3), backward
 /// Euler in displacement form solved as the minimisation of the incremental potential
 ///     E_inc(d) = 1/2 d^T M d - h d^T M v + h^2 (V(q + d) - f_ext^T d),
 /// whose gradient is the DEL residual f(d) = M d - h M v + h^2 (grad V(q + d) - f_ext)

@@ -2,7 +2,7 @@
 /// \file step_system.hpp
 /// `StepSystem<E, C, L>`: the backward Euler system of one step of a concrete simulator,
 /// as a `NewtonProblem`, in displacement form with the potential referenced to the start
-/// of the step (spec 02 §5.1):
+/// of the step (methods/integration-and-contact §5.1):
 ///
 ///   E_inc(d) = 1/2 d^T M~ d - dt d^T M v_k + dt^2 (V(q_k + d) - V(q_k)),  M~ = (1 + c dt) M
 ///   f(d) = M~ d - dt M v_k + dt^2 grad V(q_k + d),                       K = M~ + dt^2 H
@@ -12,7 +12,7 @@
 /// out of f and K.
 ///
 /// Contact constraints (a strategy modelling `HasConstraints`, e.g. obstacle_constraints.hpp;
-/// BW98, spec 02 §10, spec 04 §7): min E_inc(d) subject to per-vertex equality constraints
+/// BW98, methods/integration-and-contact §10, methods/multigrid §7): min E_inc(d) subject to per-vertex equality constraints
 /// on d, linearised at each iterate. The iterate is made feasible first (`make_feasible`:
 /// d += z, the targets of the constraints at d, exact for the analytic obstacles); then
 ///  - `assemble` asks the strategy for the constraints of the Newton direction at x_k + d

@@ -1,7 +1,7 @@
 #pragma once
 /// \file banded_lu.hpp
 /// `BandedLu`: LU factorisation with partial pivoting of a `BandMatrix` (LAPACK dgbtrf /
-/// dgbtrs), for the banded rod Hessians and compliances of spec 03 §10.3 (Algorithm 4) and
+/// dgbtrs), for the banded rod Hessians and compliances of methods/rod-contact §10.3 (Algorithm 4) and
 /// V-03. Works for indefinite nonsingular matrices; a singular matrix (an exactly zero pivot)
 /// is a returned `Status::numerical_issue` whose `message()` names the pivot.
 #include <Eigen/Core>

@@ -1,11 +1,11 @@
 #pragma once
 /// \file block_jacobi.hpp
-/// `BlockJacobi`: the 3x3 block-diagonal preconditioner of Diag-PCG (spec 04 §0, §7.2),
+/// `BlockJacobi`: the 3x3 block-diagonal preconditioner of Diag-PCG (methods/multigrid §0, §7.2),
 ///   B = blockdiag(A_11, ..., A_nn)^{-1},
 /// each block inverted through its Cholesky factor and symmetrised, so B = B^T > 0 exactly
 /// when every diagonal block is positive definite. Built from A for MPCG and from the
 /// prefiltered Ahat for PPCG (where it inverts the projected blocks S_i A_ii S_i +
-/// sigma_i (I - S_i), spec 04 §7.5).
+/// sigma_i (I - S_i), methods/multigrid §7.5).
 #include <Eigen/Core>
 
 #include <cstddef>

@@ -1,6 +1,6 @@
 #pragma once
 /// \file bsr.hpp
-/// Generic fixed-block-size sparse kernels (spec 04 §13 "block sizes"): a block-sparse
+/// Generic fixed-block-size sparse kernels (methods/multigrid §13 "block sizes"): a block-sparse
 /// matrix of R x C row-major blocks in BSR layout, block SpMV, transpose SpMV through a
 /// cached transpose index, the Galerkin triple product P^T A P with a cached symbolic
 /// phase, and block-diagonal inversion. Written once for every block shape the smoothed
@@ -35,7 +35,7 @@ template <int R, int C>
 using BlockOf = Eigen::Matrix<double, R, C, (C == 1 && R != 1) ? Eigen::ColMajor : Eigen::RowMajor>;
 
 /// Per-vertex 3x3 filters that turn a 3x3 block matrix A into the prefiltered operator
-///   Ahat = S A S + Sigma (I - S)      (spec 04 §7.3; linear/prefilter.hpp)
+///   Ahat = S A S + Sigma (I - S)      (methods/multigrid §7.3; linear/prefilter.hpp)
 /// applied as A is read, so Ahat is never stored: block (i, j) of Ahat is (S_i A_ij) S_j
 /// (the factor on a free vertex is I), plus sigma_i (I - S_i) on the diagonal. Non-owning
 /// (linear::OperatorFilter owns the arrays); an empty view (slot == nullptr) filters nothing.
@@ -301,7 +301,7 @@ class BlockMatrix {
   std::size_t memory_bytes() const {
     return row_ptr_.capacity() * sizeof(int) + col_.capacity() * sizeof(int) + val_.capacity() * sizeof(double);
   }
-  /// Remove blocks that are exactly zero (pruning before the Galerkin product, spec 04 §4.8).
+  /// Remove blocks that are exactly zero (pruning before the Galerkin product, methods/multigrid §4.8).
   /// Returns the number removed.
   int prune_zero_blocks() {
     int out = 0, removed = 0;

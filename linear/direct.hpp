@@ -6,7 +6,7 @@
 ///
 /// With a constraint set (`set_context`) it factorises the prefiltered
 ///   Ahat = S A S + Sigma (I - S)   and returns   x = z + S y,  Ahat y = S (b - A z)
-/// (linear/prefilter.hpp, spec 04 §7.3 and §13 "Direct policies"). Ahat keeps A's pattern,
+/// (linear/prefilter.hpp, methods/multigrid §7.3 and §13 "Direct policies"). Ahat keeps A's pattern,
 /// so the symbolic analysis survives changes of the contact set.
 #include <Eigen/SparseCholesky>
 

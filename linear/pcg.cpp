@@ -44,7 +44,7 @@ namespace {
 
 // Every loop runs over block rows (3 scalars), statically scheduled: the reductions are
 // deterministic for a fixed thread count, and the loops fuse what plain Eigen would do in
-// separate passes over memory (the solver is bandwidth-bound, spec 04 §9). Small systems
+// separate passes over memory (the solver is bandwidth-bound, methods/multigrid §9). Small systems
 // run serially: five parallel regions per iteration cost more than they save there, and
 // far more when the cores are shared.
 constexpr int parallel_rows = 4096;
@@ -183,7 +183,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
     rep.residual_history.push_back(1.0);
     return stop(Status::numerical_issue,
                 fmt::format("PCG breakdown at iteration 0: r^T B r = {:.3e} <= 0 for r != 0, the preconditioner is not "
-                            "positive definite (spec 04 §6.2: check its smoother interval and symmetry)",
+                            "positive definite (methods/multigrid §6.2: check its smoother interval and symmetry)",
                             delta));
   }
   const double delta0 = delta;
@@ -214,7 +214,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
       rep.residual_history.push_back(0.0);
       return stop(Status::numerical_issue,
                   fmt::format("PCG breakdown at iteration {}: r^T B r = {:.3e} <= 0 for r != 0, the preconditioner is "
-                              "not positive definite (spec 04 §6.2: check its smoother interval and symmetry)",
+                              "not positive definite (methods/multigrid §6.2: check its smoother interval and symmetry)",
                               it, delta_new));
     }
     rep.residual_history.push_back(std::sqrt(delta_new / delta0));

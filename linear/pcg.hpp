@@ -1,27 +1,27 @@
 #pragma once
 /// \file pcg.hpp
-/// Preconditioned conjugate gradients with per-vertex constraints (spec 04 §7-8), in the
+/// Preconditioned conjugate gradients with per-vertex constraints (methods/multigrid §7-8), in the
 /// two forms the thesis compares:
 ///
-/// - `ModifiedPcg<P>`: Baraff-Witkin 1998 modified PCG (MPCG, spec 04 §7.2). x starts at z
+/// - `ModifiedPcg<P>`: Baraff-Witkin 1998 modified PCG (MPCG, methods/multigrid §7.2). x starts at z
 ///   on the constrained directions and stays there; the residual and the search direction
 ///   are filtered by S = blockdiag(S_i) inside the loop. The preconditioner is built from
 ///   the *unfiltered* A (it knows nothing about the constraints).
 ///       x = z (+ S x_in with warm_start);  r = S (b - A x);  p = S B r;  delta = r^T B r
 ///       loop:  q = S A p;  alpha = delta / p^T q;  x += alpha p;  r -= alpha q
 ///              s = B r;  delta' = r^T s;  p = S (s + (delta'/delta) p)
-/// - `Ppcg<P>`: prefiltered PCG (PPCG, spec 04 §7.3-7.4). The constrained problem becomes
+/// - `Ppcg<P>`: prefiltered PCG (PPCG, methods/multigrid §7.3-7.4). The constrained problem becomes
 ///   the SPD system of A's size and pattern (linear/prefilter.hpp)
 ///       (S A S + Sigma (I - S)) y = S (b - A z),   x = z + S y,
 ///   the preconditioner is set up *from Ahat* (with the constraint set, so SA can make its
 ///   near-null modes admissible), and standard, unfiltered PCG runs from y0 = 0 (the thesis
-///   does not state its initial guess; zero is the faithful choice, spec 04 §8) or, with
+///   does not state its initial guess; zero is the faithful choice, methods/multigrid §8) or, with
 ///   warm_start, from y0 = S (x_in - z). The final x = z + S y meets the constraints to
 ///   round-off.
 ///
 /// Both stop when ||r_i||_{B} / ||r_0||_{B} < tolerance with ||r||_B = sqrt(r^T B r), B the
-/// preconditioner (the thesis's M^{-1}-norm criterion, spec 04 §8), and guard the two CG
-/// breakdowns of spec 04 §6.2: r^T B r <= 0 ("preconditioner not positive definite") and
+/// preconditioner (the thesis's M^{-1}-norm criterion, methods/multigrid §8), and guard the two CG
+/// breakdowns of methods/multigrid §6.2: r^T B r <= 0 ("preconditioner not positive definite") and
 /// p^T A p <= 0 ("matrix not positive definite", `indefinite` set), both
 /// Status::numerical_issue, like NaN/Inf. The iteration limit gives Status::no_convergence
 /// with the reached residual in the message. On failure x holds the last iterate.
@@ -54,7 +54,7 @@ namespace weft::linear {
 
 /// When the preconditioner is (re)built.
 enum class PreconditionerSetup {
-  every_factorize,   ///< rebuilt for every linear solve (thesis, spec 04 §9)
+  every_factorize,   ///< rebuilt for every linear solve (thesis, methods/multigrid §9)
   once_per_pattern,  ///< built at the first factorize after analyze_pattern, then frozen
                      ///< (a frozen SPD preconditioner keeps PCG valid; only its quality drops).
                      ///< Needs a preconditioner that owns its data (no reference to the matrix,
@@ -77,7 +77,7 @@ std::string kept_preconditioner_caveat(const KrylovParams<PrecondParams>& p);
 /// "preconditioner" when they have a `visit`.
 template <class PrecondParams>
 struct KrylovParams {
-  double tolerance = 1e-5;    ///< [-] in (0, 1): stop when ||r_i||_B / ||r_0||_B < tolerance (spec 04 §8)
+  double tolerance = 1e-5;    ///< [-] in (0, 1): stop when ||r_i||_B / ||r_0||_B < tolerance (methods/multigrid §8)
   int max_iterations = 10000; ///< >= 1: CG iterations before Status::no_convergence
   bool warm_start = false;    ///< start from the x given to solve() (projected onto the constraints)
                               ///< instead of x = z (y0 = 0); changes what the relative criterion means
@@ -221,7 +221,7 @@ class ModifiedPcg {
   /// The constraints and positions of the next factorize.
   void set_context(const SolveContext& ctx) { ctx_ = ctx; }
   /// A known solution x* for the energy error of the next solves (nullptr: none; not owned):
-  /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (spec 04 §8, V23).
+  /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (methods/multigrid §8, V23).
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
@@ -272,7 +272,7 @@ class Ppcg {
   /// The constraints and positions of the next factorize.
   void set_context(const SolveContext& ctx) { pre_.set_context(ctx); }
   /// A known solution x* for the energy error of the next solves (nullptr: none; not owned):
-  /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (spec 04 §8, V23).
+  /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (methods/multigrid §8, V23).
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }

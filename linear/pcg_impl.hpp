@@ -139,7 +139,7 @@ Status ModifiedPcg<P>::factorize(const BlockCsr& A) {
   input_error_.clear();
   if (c) filters_.build(*c);
   else filters_.clear();
-  // The preconditioner of the full, unfiltered system: it sees no constraints (spec 04 §7.5).
+  // The preconditioner of the full, unfiltered system: it sees no constraints (methods/multigrid §7.5).
   return slot_.setup(A, SolveContext{nullptr, ctx_.positions});
 }
 

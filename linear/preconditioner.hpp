@@ -1,6 +1,6 @@
 #pragma once
 /// \file preconditioner.hpp
-/// The preconditioner concept of the Krylov solvers (spec 04 §13): a numeric setup from
+/// The preconditioner concept of the Krylov solvers (methods/multigrid §13): a numeric setup from
 /// the (prefiltered) matrix and a const `apply` that is, by contract, a fixed SPD linear
 /// map (Appendix A): the same r always gives the same z, and z = B r with B = B^T > 0.
 #include <Eigen/Core>

@@ -1,11 +1,11 @@
 #pragma once
 /// \file prefilter.hpp
-/// Prefiltering of spec 04 §7.3-7.4: the constrained problem
+/// Prefiltering of methods/multigrid §7.3-7.4: the constrained problem
 ///   min ||S (b - A x)||  s.t.  (I - S) x = (I - S) z
 /// becomes the SPD system of A's size and block pattern
 ///   (S A S + Sigma (I - S)) y = S (b - A z),   x = z + S y,
 /// with Sigma_i = tr(A_ii)/3 per vertex (so the constrained directions' eigenvalues sit
-/// inside A's spectrum whatever the units; spec 04 §7.3 [ours]). Any SPD solver (PCG with
+/// inside A's spectrum whatever the units; methods/multigrid §7.3 [ours]). Any SPD solver (PCG with
 /// any preconditioner, direct, PETSc) then solves the constrained problem exactly.
 #include <Eigen/Core>
 

@@ -189,7 +189,7 @@ void strong_flags(const BsrView<B, B>& A, const std::vector<double>& mu, double 
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k)
       strong[k] = A.col[k] != i && ref > 0 && mu[k] > theta * ref;
   }
-  // Symmetrise: strong if strong in either row (spec 04 §4.3).
+  // Symmetrise: strong if strong in either row (methods/multigrid §4.3).
 #pragma omp parallel for schedule(static) if (n > parallel_rows)
   for (int i = 0; i < n; ++i)
     for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
@@ -405,7 +405,7 @@ NullSpace rigid_body_modes(const Eigen::VectorXd& positions, const ConstraintSet
     const Eigen::Vector3d p = positions.segment<3>(3 * i) - centre;
     auto Ki = K.middleRows<3>(3 * i);
     Ki.leftCols<3>().setIdentity();
-    // Columns r_x, r_y, r_z (spec 04 §4.2): the velocity e_k x p.
+    // Columns r_x, r_y, r_z (methods/multigrid §4.2): the velocity e_k x p.
     Ki.rightCols<3>() << 0, p.z(), -p.y(),  //
         -p.z(), 0, p.x(),                   //
         p.y(), -p.x(), 0;
@@ -452,7 +452,7 @@ Tentative tentative_prolongator(const Aggregates& aggs, const NullSpace& K, doub
       Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
       bool dropped = false;
       // Classical Gram-Schmidt, twice (CGS2): orthogonal to round-off; columns in the span of
-      // the previous ones (relative tolerance) are dropped and stay zero (spec 04 §4.6).
+      // the previous ones (relative tolerance) are dropped and stay zero (methods/multigrid §4.6).
       for (int c = 0; c < 6; ++c) {
         const double original = Va.col(c).norm();
         for (int pass = 0; pass < 2; ++pass)
@@ -1454,7 +1454,7 @@ void add_correction(int n, const double* d, double* x, bool assign) {
   }
 }
 
-/// Chebyshev iteration (spec 04 §5.2) on D^-1 A over [lower, upper] * lambda:
+/// Chebyshev iteration (methods/multigrid §5.2) on D^-1 A over [lower, upper] * lambda:
 /// x <- x + p-correction; with `zero_guess` x is overwritten (x = p-smoothing of 0). Each
 /// step forms its residual f - A x from x itself (not by the update r -= A d), so the only
 /// work vector is the correction d (the level's work vector, see `work_of`).
@@ -1655,7 +1655,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   restrict_to(L, r, C.f.data(), d);
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
-  // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (spec 04 §2.4). The
+  // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (methods/multigrid §2.4). The
   // cycle from the current x_c applies that update in place: no residual or correction vector.
   if (!C.coarsest && index + 1 <= prm.cycle_gamma_levels)
     for (int r = 1; r < prm.cycle_gamma; ++r)

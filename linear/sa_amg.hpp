@@ -1,10 +1,10 @@
 #pragma once
 /// \file sa_amg.hpp
-/// `SaAmg`: smoothed aggregation multigrid for cloth (spec 04 §4-6; Tamstorf, Jones &
+/// `SaAmg`: smoothed aggregation multigrid for cloth (methods/multigrid §4-6; Tamstorf, Jones &
 /// McCormick 2015), used as a fixed SPD preconditioner (one V(1,1) cycle, zero initial
 /// guess) of PCG on the prefiltered system Ahat = S A S + Sigma (I - S).
 ///
-/// Setup per level (spec 04 §4.10), fine level with 3x3 blocks, coarse levels 6x6:
+/// Setup per level (methods/multigrid §4.10), fine level with 3x3 blocks, coarse levels 6x6:
 ///   Dinv   <- block-diagonal inverse of A_l
 ///   lambda <- 10 steps of generalised Lanczos on A q = lambda D q, inflated (§4.7)
 ///   Csoc   <- mu_ij = rho(A_ii^-1/2 A_ij A_jj^-1/2) > theta max_k mu_ik, symmetrised (§4.3)
@@ -45,7 +45,7 @@
 
 namespace weft::linear {
 
-/// How mu_ij measures the scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 (spec 04 §4.3).
+/// How mu_ij measures the scaled block M = A_ii^-1/2 A_ij A_jj^-1/2 (methods/multigrid §4.3).
 enum class SocMeasure {
   spectral,   ///< rho(M), the thesis's measure (3x3: exact, closed-form cubic; 6x6: ||M^64||_F^(1/64), within ~2%)
   two_norm,   ///< ||M||_2 >= rho(M)
@@ -61,7 +61,7 @@ enum class AggregateOrder {
 };
 inline constexpr std::array<std::string_view, 3> aggregate_order_names = {"natural", "rcm", "auto"};
 
-/// What a `setup` with an unchanged pattern may keep from the previous one (spec 04 §13).
+/// What a `setup` with an unchanged pattern may keep from the previous one (methods/multigrid §13).
 enum class SaReuse {
   none,        ///< rebuild everything (the thesis)
   aggregates,  ///< keep strength, special nodes, aggregates and every pattern (P, P^T index,
@@ -84,7 +84,7 @@ enum class ValueStorage {
 };
 inline constexpr std::array<std::string_view, 3> value_storage_names = {"double", "single", "fixed16"};
 
-/// Which upper estimate of lambda_max(D^-1 A) the smoother and omega use (spec 04 §4.7).
+/// Which upper estimate of lambda_max(D^-1 A) the smoother and omega use (methods/multigrid §4.7).
 enum class LambdaBound {
   ritz_residual,  ///< largest Ritz value + its residual bound |beta_m s_m|
   ritz_factor,    ///< 1.1 * largest Ritz value
@@ -161,7 +161,7 @@ template <int B>
 int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double tau_dd, std::vector<std::uint8_t>& strong,
                   std::vector<std::uint8_t>& special);
 
-/// Node -> aggregate map (-1 for special nodes) of the two-pass aggregation (spec 04 §4.5).
+/// Node -> aggregate map (-1 for special nodes) of the two-pass aggregation (methods/multigrid §4.5).
 struct Aggregates {
   std::vector<int> node_agg;
   int count = 0;
@@ -214,11 +214,11 @@ int merge_small_aggregates(const SheetEdges& edges, Aggregates& aggs, int max_si
 SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs);
 
 /// The six rigid-body modes at `positions` (3 per vertex, centred on their mean), filtered
-/// K <- S K when `constraints` is given (spec 04 §4.2).
+/// K <- S K when `constraints` is given (methods/multigrid §4.2).
 NullSpace rigid_body_modes(const Eigen::VectorXd& positions, const ConstraintSet* constraints);
 
 /// Tentative prolongator: Phat = blockdiag(Q_a) stored as one B x 6 block per node (zero for
-/// special nodes), Kc = [R_1; ...; R_n2] (spec 04 §4.6).
+/// special nodes), Kc = [R_1; ...; R_n2] (methods/multigrid §4.6).
 struct Tentative {
   std::vector<double> Q;              ///< #nodes blocks of B x 6 (row-major)
   NullSpace Kc;                       ///< 6 #aggregates by 6
@@ -289,13 +289,13 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows = 512);
 
 }  // namespace sa
 
-/// Smoothed aggregation multigrid V(1,1) preconditioner (spec 04 §4-6). `apply` is const
+/// Smoothed aggregation multigrid V(1,1) preconditioner (methods/multigrid §4-6). `apply` is const
 /// but uses per-level work vectors: one `apply` at a time per object.
 class SaAmg {
  public:
   static constexpr std::string_view name = "sa";
   struct Params {
-    /// Strength threshold relative to the row maximum (spec 04 §4.3, the thesis' 0.48): block
+    /// Strength threshold relative to the row maximum (methods/multigrid §4.3, the thesis' 0.48): block
     /// (i, j) is strong if mu_ij > theta max_k mu_ik. The prolongator is smoothed with the
     /// filtered matrix A_f of the strong blocks (weak ones lumped into the diagonal).
     double theta = 0.48;
@@ -321,7 +321,7 @@ class SaAmg {
     double chebyshev_upper = 1.1;      ///< b / lambda
     /// Coarse cycles per visit of levels 1 .. cycle_gamma_levels (gamma of the mu-cycle): 1 is
     /// the V-cycle; 2 makes the correction of such a level two V-cycles from it (a W-cycle
-    /// there, B_l = 2 V_l - V_l A_l V_l, still SPD). Spec 04 §2.4: W-cycles converge under the
+    /// there, B_l = 2 V_l - V_l A_l V_l, still SPD). methods/multigrid §2.4: W-cycles converge under the
     /// weak approximation property alone, which one-step smoothed rigid-mode aggregates of a
     /// bending-dominated sheet keep while the V-cycle degrades with depth. The extra cycles
     /// run in place, with no vectors of their own.

@@ -1,4 +1,4 @@
-// The Krylov templates instantiated for smoothed aggregation, once (STYLE.md §4).
+// The Krylov templates instantiated for smoothed aggregation, once (docs/architecture.md, "Pre-built combinations").
 #include "linear/sa_ppcg.hpp"
 
 #include "linear/pcg_impl.hpp"

@@ -1,9 +1,9 @@
 #pragma once
 /// \file sa_ppcg.hpp
-/// The smoothed-aggregation solvers: `SaPpcg` (the thesis' SA+PPCG, spec 04 §0: PCG on the
+/// The smoothed-aggregation solvers: `SaPpcg` (the thesis' SA+PPCG, methods/multigrid §0: PCG on the
 /// prefiltered system, preconditioned by one SA V-cycle built from that system) and
 /// `SaMpcg` (the ablation "SA without prefiltering": the V-cycle built from the unfiltered A
-/// inside Baraff-Witkin's modified PCG, spec 04 §7.2, thesis Fig. 11.8).
+/// inside Baraff-Witkin's modified PCG, methods/multigrid §7.2, thesis Fig. 11.8).
 #include <string_view>
 
 #include "linear/pcg.hpp"

@@ -1,7 +1,7 @@
 #pragma once
 /// \file bending_autodiff.hpp
 /// Third implementation of the hinge-bending derivatives: forward-mode automatic
-/// differentiation of the signed dihedral angle (spec 01 §8 reproduction protocol, path "A";
+/// differentiation of the signed dihedral angle (methods/shells §8 reproduction protocol, path "A";
 /// §9 item 5). BENCHMARK AND TEST ORACLE ONLY: no simulator uses it.
 ///
 /// theta(x0..x3) = atan2((n x n~) . e0_hat, n . n~) is evaluated on nested Eigen

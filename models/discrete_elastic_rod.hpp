@@ -1,7 +1,7 @@
 #pragma once
 /// \file discrete_elastic_rod.hpp
 /// One discrete elastic rod (Bergou et al. 2008, "Discrete elastic rods"; Bergou et al. 2010,
-/// "Discrete viscous threads"; spec 03 §13): stretching, bending and twisting energies of a
+/// "Discrete viscous threads"; methods/rod-contact §13): stretching, bending and twisting energies of a
 /// polyline with one twist angle per edge, with the exact gradient and the exact (or
 /// per-stencil PSD-projected) banded Hessian.
 ///
@@ -19,7 +19,7 @@
 /// reference twist at interior vertex i: the signed angle about t_i from P_{t_{i-1} -> t_i} d1_{i-1}
 /// to d1_i, on the 2 pi branch nearest from.reference_twist.
 ///
-/// Energies (spec 03 §13, circular cross-section of radius r):
+/// Energies (methods/rod-contact §13, circular cross-section of radius r):
 ///   stretch  E_s = sum_j 1/2 k_s (|e_j| / |ebar_j| - 1)^2 |ebar_j|,   k_s = Y pi r^2
 ///   bend     E_b = sum_i sum_{j in {i-1, i}} b / (4 lbar_i) |kappa_i^j - kappabar_i^j|^2,   b = Y pi r^4 / 4
 ///            kappa_i^j = ((kb)_i . m2_j, -(kb)_i . m1_j)   (Bergou 2008 averages the two edges' frames)

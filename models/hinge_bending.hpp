@@ -1,11 +1,11 @@
 #pragma once
 /// \file hinge_bending.hpp
-/// Discrete-shells hinge bending (spec 01 §6; Grinspun et al. 2003, Tamstorf & Grinspun
+/// Discrete-shells hinge bending (methods/shells §6; Grinspun et al. 2003, Tamstorf & Grinspun
 /// 2013): one scalar energy psi_e(theta_e) per interior edge of the signed dihedral angle,
 /// with the exact gradient psi' grad(theta) and Hessian psi' Hess(theta) + psi'' grad grad^T.
 ///
 /// Two assembly paths share every kernel below: the refactored per-triangle assembly of
-/// spec 01 §6.7-§6.9 (Algorithms 1 and 2; the default) and the closed form per hinge
+/// methods/shells §6.7-§6.9 (Algorithms 1 and 2; the default) and the closed form per hinge
 /// (§6.6; the alternative path, the test oracle, and what the projected mode needs). A
 /// third path, forward-mode automatic differentiation, lives in bending_autodiff.hpp
 /// (benchmark and test oracle only).
@@ -41,7 +41,7 @@ struct Psi {
   double value, d1, d2;
 };
 
-/// Geometry of one triangle (v0, v1, v2), counter-clockwise about n (spec 01 §1, §6.5).
+/// Geometry of one triangle (v0, v1, v2), counter-clockwise about n (methods/shells §1, §6.5).
 /// Edge i is opposite v_i and cyclic: e0 = v2 - v1, e1 = v0 - v2, e2 = v1 - v0.
 struct TriangleFrame {
   Eigen::Vector3d n;                     ///< unit normal, (v1 - v0) x (v2 - v0) normalised
@@ -57,14 +57,14 @@ struct TriangleFrame {
 /// Not finite (NaN) for a zero-area triangle: check the altitudes before using it.
 TriangleFrame triangle_frame(const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2);
 
-/// The two triangles of a hinge x0..x3: T = (x0, x1, x2), T~ = (x3, x2, x1) (spec 01 §6.1).
+/// The two triangles of a hinge x0..x3: T = (x0, x1, x2), T~ = (x3, x2, x1) (methods/shells §6.1).
 struct HingeFrames {
   TriangleFrame T, Tt;
 };
 HingeFrames hinge_frames(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1, const Eigen::Vector3d& x2,
                          const Eigen::Vector3d& x3);
 
-/// Signed dihedral angle and half-angle quantities (spec 01 §6.1, Eq. 5.12).
+/// Signed dihedral angle and half-angle quantities (methods/shells §6.1, Eq. 5.12).
 struct HingeAngle {
   double theta;       ///< atan2((n x n~) . e0_hat, n . n~) in [-pi, pi], positive when the normals point apart
   double tan_half;    ///< tan(theta / 2) = sgn((n x n~) . e0) ||n - n~|| / ||n + n~||
@@ -74,7 +74,7 @@ HingeAngle hinge_angle(const HingeFrames& f);
 /// The same from the two unit normals and the unit hinge edge as traversed by T.
 HingeAngle hinge_angle(const Eigen::Vector3d& n, const Eigen::Vector3d& nt, const Eigen::Vector3d& e_hat);
 
-/// grad(theta), 12-vector over (x0, x1, x2, x3) (spec 01 Eq. 5.4):
+/// grad(theta), 12-vector over (x0, x1, x2, x3) (methods/shells Eq. 5.4):
 ///   d/dx0 = -n / h_T(x0),  d/dx3 = -n~ / h_T~(x3),
 ///   d/dx1 = cos a_T(x2) / h_T(x1) n + cos a_T~(x2) / h_T~(x1) n~,
 ///   d/dx2 = cos a_T(x1) / h_T(x2) n + cos a_T~(x1) / h_T~(x2) n~.
@@ -85,7 +85,7 @@ Vec12 grad_theta(const HingeFrames& f);
 Vec12 grad_theta(const TriangleFrame& T, int j, const TriangleFrame& Tt, int k);
 
 /// Half-hinge contribution of one triangle to Hess(theta), local labels: wing 0, hinge 1, 2
-/// (spec 01 §6.6, Eq. 5.6 with the corrections of traps 1 and 2). With M_i = n m_i^T,
+/// (methods/shells §6.6, Eq. 5.6 with the corrections of traps 1 and 2). With M_i = n m_i^T,
 /// N_0 = M_0 / l_0^2, w_ij = 1 / (h_i h_j), S(A) = A + A^T:
 ///   B00 = -w00 S(M0)
 ///   B11 = w11 cos a2 S(M1) - N0,        B22 = w22 cos a1 S(M2) - N0
@@ -103,7 +103,7 @@ Mat12 hess_theta(const HingeFrames& f);
 /// complement.
 Mat12 project_psd(const Mat12& H);
 
-/// Refactored per-triangle terms (spec 01 §6.7, Eq. 5.7): the sum over the triangle's three
+/// Refactored per-triangle terms (methods/shells §6.7, Eq. 5.7): the sum over the triangle's three
 /// edges of psi'_e times that edge's half hinge, and the matching gradient. With
 /// gamma_i = chi_i psi'_i (0 on boundary edges), R_i = gamma_i N_i, N_i = M_i / l_i^2,
 ///   d_i  = gamma_{i+2} cos a_{i+1} + gamma_{i+1} cos a_{i+2} - gamma_i
@@ -128,14 +128,14 @@ Mat9 triangle_hessian(const TriangleTerms& terms);
 
 }  // namespace bending
 
-/// How `HingeBending` evaluates its exact Hessian (spec 01 §10.3, "assembly strategy").
+/// How `HingeBending` evaluates its exact Hessian (methods/shells §10.3, "assembly strategy").
 enum class BendingAssembly {
-  refactored,  ///< per triangle, spec 01 §6.7-§6.9 (Algorithms 1 and 2)
-  per_hinge,   ///< closed form per hinge, spec 01 §6.6
+  refactored,  ///< per triangle, methods/shells §6.7-§6.9 (Algorithms 1 and 2)
+  per_hinge,   ///< closed form per hinge, methods/shells §6.6
 };
 inline constexpr std::array<std::string_view, 2> bending_assembly_names = {"refactored", "per_hinge"};
 
-/// psi = kappa (theta - thetabar)^2 (discrete shells, spec 01 §6.2). theta wraps at +-pi, where
+/// psi = kappa (theta - thetabar)^2 (discrete shells, methods/shells §6.2). theta wraps at +-pi, where
 /// this energy is discontinuous; use TanEnergy to keep hinges from folding through.
 struct ThetaEnergy {
   static constexpr std::string_view name = "theta";
@@ -143,12 +143,12 @@ struct ThetaEnergy {
   static bending::Phi phi(const bending::HingeAngle& a) { return {a.theta, 1.0, 0.0}; }
 };
 
-/// psi = kappa (phi(theta) - phi(thetabar))^2 with phi = 2 tan(theta / 2) (spec 01 Eq. 5.8):
+/// psi = kappa (phi(theta) - phi(thetabar))^2 with phi = 2 tan(theta / 2) (methods/shells Eq. 5.8):
 /// the energy grows without bound as |theta| -> pi, so adjacent triangles cannot fold through.
 struct TanEnergy {
   static constexpr std::string_view name = "tan";
   static constexpr bool requires_open_interval = true;  ///< |theta| < pi, ||n + n~|| >= tolerance
-  /// phi = 2t, phi' = 1 + t^2, phi'' = t (1 + t^2) with t = tan(theta / 2) (spec 01 §6.3).
+  /// phi = 2t, phi' = 1 + t^2, phi'' = t (1 + t^2) with t = tan(theta / 2) (methods/shells §6.3).
   static bending::Phi phi(const bending::HingeAngle& a) {
     const double t = a.tan_half;
     return {2.0 * t, 1.0 + t * t, t * (1.0 + t * t)};
@@ -157,7 +157,7 @@ struct TanEnergy {
 
 namespace bending {
 /// psi = kappa (phi - phibar)^2, psi' = 2 kappa (phi - phibar) phi',
-/// psi'' = 2 kappa (phi'^2 + (phi - phibar) phi'') (spec 01 §6.3).
+/// psi'' = 2 kappa (phi'^2 + (phi - phibar) phi'') (methods/shells §6.3).
 template <class AngleFunction>
 Psi psi(const HingeAngle& a, double phi_bar, double kappa) {
   const Phi p = AngleFunction::phi(a);
@@ -181,7 +181,7 @@ struct HingeRest {
 }  // namespace bending
 
 /// Hinge bending energy W = sum over interior edges of kappa_e (phi(theta_e) - phi(thetabar_e))^2,
-/// kappa_e = k a_e, k = mean of the two faces' `ShellMaterial::bending_k()` (spec 01 §6.2).
+/// kappa_e = k a_e, k = mean of the two faces' `ShellMaterial::bending_k()` (methods/shells §6.2).
 ///
 /// Domain: a hinge is degenerate when an altitude of one of its triangles drops below
 /// `altitude_tolerance` times the rest length of the edge it falls onto, when the hinge edge
@@ -216,7 +216,7 @@ class HingeBending {
     double edge_tolerance = 1e-9;      ///< [-] a hinge is degenerate below l_e < tol * lbar_e
     double normal_tolerance = 1e-8;    ///< [-] TanEnergy only: degenerate below ||n + n~|| < tol (|theta| -> pi)
     /// Exact-Hessian and gradient evaluation: per triangle (default) or per hinge. The
-    /// projected Hessian is always per hinge (the refactoring mixes hinges, spec 01 §6.12).
+    /// projected Hessian is always per hinge (the refactoring mixes hinges, methods/shells §6.12).
     BendingAssembly assembly = BendingAssembly::refactored;
     template <class V>
     void visit(V& v) {
@@ -239,7 +239,7 @@ class HingeBending {
   HingeBending(const Scene& scene, const Params& prm);
   /// The same with the global orientation of the edges marked in `flip_edges` (#edges, by
   /// mesh edge id) reversed to high -> low id; it decides which triangle of a hinge
-  /// transposes N0 and owns the hinge (spec 01 §9 item 13: the result must not depend on it).
+  /// transposes N0 and owns the hinge (methods/shells §9 item 13: the result must not depend on it).
   HingeBending(const Scene& scene, const Params& prm, std::span<const unsigned char> flip_edges);
   static Checker validate(const Params& prm);
 

@@ -14,7 +14,7 @@ namespace weft::models {
 namespace membrane {
 
 namespace {
-// eps_il: e_i = sum_l eps_il v_l (spec 01 §1; opposite sign to Levi-Civita).
+// eps_il: e_i = sum_l eps_il v_l (methods/shells §1; opposite sign to Levi-Civita).
 constexpr int eps[3][3] = {{0, -1, 1}, {1, 0, -1}, {-1, 1, 0}};
 
 std::array<Eigen::Vector3d, 3> edges(const Eigen::Matrix3d& v) {
@@ -48,7 +48,7 @@ RestShape rest_shape(const Eigen::Matrix3d& rest, const Eigen::Vector3d& warp) {
   r.length2 = Eigen::Vector3d(e[0].squaredNorm(), e[1].squaredNorm(), e[2].squaredNorm());
   if (warp.squaredNorm() > 0) {
     // Gram system [d00 d01; d01 d11] w = (warp . e0, warp . e1): w0 e0 + w1 e1 is the
-    // projection of `warp` onto the rest plane (spec 01 §5).
+    // projection of `warp` onto the rest plane (methods/shells §5).
     const double g00 = r.length2[0], g11 = r.length2[1], g01 = e[0].dot(e[1]);
     const double r0 = warp.dot(e[0]), r1 = warp.dot(e[1]);
     const double det = g00 * g11 - g01 * g01;  // (2 Abar)^2

@@ -1,7 +1,7 @@
 #pragma once
 /// \file stvk_membrane.hpp
 /// St. Venant–Kirchhoff membrane on constant-strain triangles, in the edge-based form of
-/// spec 01 §4 (thesis §4.5): per triangle the edge elongations s_i = 1/2 (l_i^2 - lbar_i^2),
+/// methods/shells §4 (thesis §4.5): per triangle the edge elongations s_i = 1/2 (l_i^2 - lbar_i^2),
 /// a precomputed symmetric 3x3 matrix T, and W = s^T T s. Isotropic and orthotropic
 /// materials differ only in how T is precomputed; the runtime kernel is the same.
 #include <Eigen/Core>
@@ -23,7 +23,7 @@ struct Isotropic {
   static constexpr bool accepts_orthotropic = false;
 };
 
-/// Orthotropic membrane (spec 01 §3.2, §4.3): T gains the terms 2b T3 + a T4 of a direction
+/// Orthotropic membrane (methods/shells §3.2, §4.3): T gains the terms 2b T3 + a T4 of a direction
 /// per face (`Scene::face_warp`). Accepts isotropic materials too, as the special case
 /// eta = 1, G = Y / (1 + nu) (then a = b = 0). Same per-element cost as `Isotropic`.
 struct Orthotropic {
@@ -36,7 +36,7 @@ namespace membrane {
 using Mat9 = Eigen::Matrix<double, 9, 9>;
 using Vec9 = Eigen::Matrix<double, 9, 1>;
 
-/// Material constants of the quadratic StVK density (spec 01 §3.2, Eq. 4.4):
+/// Material constants of the quadratic StVK density (methods/shells §3.2, Eq. 4.4):
 ///   psi = lambda/2 J1^2 + mu J2 + a J1 J3 + b J3^2,  J3 = ahat^T E ahat.
 struct LameConstants {
   double lambda = 0;  ///< [Pa]
@@ -46,16 +46,16 @@ struct LameConstants {
   bool orthotropic() const { return a != 0 || b != 0; }
 };
 
-/// Plane-stress Lamé constants of an isotropic sheet (spec 01 Eq. 4.2):
+/// Plane-stress Lamé constants of an isotropic sheet (methods/shells Eq. 4.2):
 ///   lambda = Y nu / (1 - nu^2), mu = Y / (2 (1 + nu)), a = b = 0.
 LameConstants isotropic_lame(double youngs_modulus, double poisson_ratio);
 
-/// Orthotropic constants (spec 01 Eq. 4.4) in the spec's symbols, x = ahat_perp, y = ahat:
+/// Orthotropic constants (methods/shells Eq. 4.4) in the spec's symbols, x = ahat_perp, y = ahat:
 ///   lambda = Y / (1 - eta nu^2) - G,           mu = G / 2,
 ///   a = (eta nu - 1) / (1 - eta nu^2) Y + G,   b = (1 + eta - 2 eta nu) / (2 (1 - eta nu^2)) Y - G,
 /// \param Y Young's modulus along x [Pa]  \param eta Y_y / Y_x  \param nu nu_xy
 /// \param G the thesis' shear constant, the Voigt entry of *tensor* shear strain: G = 2 G12
-///        (engineering shear modulus G12; spec 01 §0 trap 4). Isotropy: eta = 1, G = Y/(1+nu).
+///        (engineering shear modulus G12; methods/shells §0 trap 4). Isotropy: eta = 1, G = Y/(1+nu).
 LameConstants orthotropic_lame(double Y, double eta, double nu, double G);
 
 /// Constants of a scene material in the project's warp/weft convention (see `ShellMaterial`:
@@ -67,11 +67,11 @@ LameConstants material_lame(const ShellMaterial& m);
 double double_area(const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2);
 
 /// The intrinsic rest shape of one element: everything T depends on besides the material
-/// (spec 01 §5). Static rest states and animated ones (blended edge lengths) go through the
+/// (methods/shells §5). Static rest states and animated ones (blended edge lengths) go through the
 /// same `element_matrix`.
 struct RestShape {
   Eigen::Vector3d length2 = Eigen::Vector3d::Zero();  ///< lbar_i^2 of the cyclic edges [m^2]
-  /// (w0, w1): the warp direction ahat_perp = w0 ebar_0 + w1 ebar_1 in the rest plane (spec 01
+  /// (w0, w1): the warp direction ahat_perp = w0 ebar_0 + w1 ebar_1 in the rest plane (methods/shells
   /// §5: the 2x2 Gram solve in the true rest configuration). Any nonzero length (normalised
   /// in `element_matrix`); zero when the element has no direction (isotropic).
   Eigen::Vector2d warp = Eigen::Vector2d::Zero();
@@ -81,7 +81,7 @@ struct RestShape {
 /// component normal to the rest plane drops out of the Gram solve; zero for none).
 RestShape rest_shape(const Eigen::Matrix3d& rest, const Eigen::Vector3d& warp = Eigen::Vector3d::Zero());
 
-/// The element matrix T of spec 01 Eq. 4.8 from edge lengths only (§4.3–4.4, §5):
+/// The element matrix T of methods/shells Eq. 4.8 from edge lengths only (§4.3–4.4, §5):
 ///   T = h / (32 Abar^3) (lambda T1 + mu T2 + 2 b T3 + a T4),
 ///   T1_il = d_{i+1,i+2} d_{l+1,l+2},
 ///   T2_il = d_{i+2,l+1} d_{i+1,l+2} + d_{i+2,l+2} d_{i+1,l+1},
@@ -92,13 +92,13 @@ RestShape rest_shape(const Eigen::Matrix3d& rest, const Eigen::Vector3d& warp = 
 ///   d_ii = lbar_i^2, d_jk = ebar_j . ebar_k = 1/2 (lbar_i^2 - lbar_j^2 - lbar_k^2)   (Eq. 4.10, {i,j,k} = {0,1,2}),
 ///   beta_i = ahat_perp . ebar_i / ||ahat_perp|| = (w0 d_0i + w1 d_1i) / sqrt(w^T [d_00 d_01; d_01 d_11] w)
 /// (= -ahat . mbar_i with mbar_i = nbar x ebar_i; the sign is immaterial: only products
-/// beta_j beta_k occur). The normalisation by ||ahat_perp|| is spec 01 §5's [L] addition: T3,
+/// beta_j beta_k occur). The normalisation by ||ahat_perp|| is methods/shells §5's [L] addition: T3,
 /// T4 assume a unit direction.
 /// \returns false (T untouched) when the lengths are not a proper triangle (`proper_triangle`).
 bool element_matrix(const RestShape& rest, double thickness, const LameConstants& c, Eigen::Matrix3d& T);
 
 /// `element_matrix` of rest vertices (rows v0, v1, v2; non-degenerate) with the structural
-/// direction ahat (spec 01 §3.2 y axis, unit, in the rest plane; only read when a or b is
+/// direction ahat (methods/shells §3.2 y axis, unit, in the rest plane; only read when a or b is
 /// nonzero, may be zero otherwise), i.e. warp = nbar x ahat.
 Eigen::Matrix3d stvk_T(const Eigen::Matrix3d& rest, double thickness, const LameConstants& c,
                        const Eigen::Vector3d& direction = Eigen::Vector3d::Zero());
@@ -112,19 +112,19 @@ struct Element {
 /// Deformed positions x0, x1, x2 of one element, rows of a 3 by 3 matrix.
 using Corners = Eigen::Matrix3d;
 
-/// W = s^T T s (spec 01 Eq. 4.8).
+/// W = s^T T s (methods/shells Eq. 4.8).
 double element_energy(const Corners& x, const Element& el);
-/// dW/dx_m = r_{m+1} e_{m+1} - r_{m+2} e_{m+2}, r = 2 T s (spec 01 §4.5: f = -dW/dx).
+/// dW/dx_m = r_{m+1} e_{m+1} - r_{m+2} e_{m+2}, r = 2 T s (methods/shells §4.5: f = -dW/dx).
 Vec9 element_gradient(const Corners& x, const Element& el);
-/// Factored Hessian (spec 01 §4.6): H = B^T (2T) B + sum_i r_i (eps_i eps_i^T) (x) I3, with
+/// Factored Hessian (methods/shells §4.6): H = B^T (2T) B + sum_i r_i (eps_i eps_i^T) (x) I3, with
 /// B_i = ds_i/dx. `projected` replaces r_i by max(r_i, 0) in the second term (PSD when T is).
 Mat9 element_hessian(const Corners& x, const Element& el, bool projected);
 
 }  // namespace membrane
 
-/// St. Venant–Kirchhoff membrane energy of every face (spec 01 §4), material per face from
+/// St. Venant–Kirchhoff membrane energy of every face (methods/shells §4), material per face from
 /// `Scene::face_material`, warp direction per face from `Scene::face_warp` (orthotropic
-/// materials only), optionally with an animated rest state (`ClothSpec::rest_state`, spec 01 §5).
+/// materials only), optionally with an animated rest state (`ClothSpec::rest_state`, methods/shells §5).
 ///
 /// The exact Hessian is indefinite when an edge is compressed (r_i < 0); `HessianMode::projected`
 /// clamps those edge tensions to zero in the geometric term, which makes every element PSD.

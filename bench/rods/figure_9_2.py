@@ -18,7 +18,7 @@ import sys
 
 SYMBOL = {"stable": ".", "diverged": "D", "not_converged": "N", "excessive_strain": "S", "invalid": "?"}
 NAMES = {"rods_impulse": "impulse", "rods_linear": "linear compliance", "rods_adonis": "ADONIS"}
-THESIS = ("Thesis (§9.1, Figure 9.2; spec 03 §14.1): about two orders of magnitude larger maximum "
+THESIS = ("Thesis (§9.1, Figure 9.2; methods/rod-contact §14.1): about two orders of magnitude larger maximum "
           "stable time step for ADONIS; the stability regions of linear compliance and impulses largely "
           "overlap (for small-bend collisions linear compliance behaves like an unfiltered impulse). "
           "Success: 5 s simulated with axial extension never above 50 %. Sweep 5 us - 100 ms.")

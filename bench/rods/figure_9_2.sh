@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Figure 9.2 of the thesis (spec 03 §14.1, V-20): the whip-it stability sweep. `weft stability`
+# Figure 9.2 of the thesis (methods/rod-contact §14.1, V-20): the whip-it stability sweep. `weft stability`
 # on scenes/whip.json over the time step (5 us to 100 ms, 1-2-5 per decade: 14 steps) against
 # the whipping speed (the handle's angular velocity about z, default 1, 3, 10, 20 rad/s) for
 # the three response methods (impulses, linear compliance, ADONIS). A run succeeds when it

@@ -3,7 +3,7 @@
 /// Continuous collision detection for one vertex-triangle (VF) or edge-edge (EE) pair
 /// over a step with linear trajectories x_j(t) = x0_j + t (x1_j - x0_j), t in [0, 1].
 ///
-/// Method (spec 02 §11.2; Provot 1997, with a distance test and a conservative fallback):
+/// Method (methods/integration-and-contact §11.2; Provot 1997, with a distance test and a conservative fallback):
 ///  1. Coplanarity cubic. With A, B the two spanning vectors and C the offset,
 ///       VF (p; a, b, c): A = b - a, B = c - a, C = p - a,
 ///       EE (a0, a1; b0, b1): A = a1 - a0, B = b1 - b0, C = b0 - a0,
@@ -53,7 +53,7 @@
 /// magnitude. The time of impact is the first time the pair is within eta, slightly before
 /// the exact contact (by about eta / approach speed).
 ///
-/// Weights and normal (spec 02 §11.1-11.2) are evaluated at toi: gamma are the stencil
+/// Weights and normal (methods/integration-and-contact §11.1-11.2) are evaluated at toi: gamma are the stencil
 /// weights (g = sum_j gamma_j x_j(toi) = p^a - p^b, sum gamma = 0), VF gamma = (1, -w0, -w1, -w2),
 /// EE gamma = (1 - s, s, -(1 - u), -u). The normal is the geometric one, face normal A x B (VF)
 /// or A x B of the two edges (EE), oriented so that n . (p^a - p^b) > 0 just before contact

@@ -10,7 +10,7 @@
 /// degrades beyond `bvh.rebuild_factor` (obstacle trees are refitted only when their
 /// positions change). The queries then reuse those boxes:
 ///  - `proximity(x, thickness)`: pairs within `thickness` at a configuration x on the
-///    step's trajectory (typically x0, spec 02 §11.2), see proximity.hpp;
+///    step's trajectory (typically x0, methods/integration-and-contact §11.2), see proximity.hpp;
 ///  - `ccd(x0, x1, eta)`: pairs that come within eta during the step, with the earliest
 ///    time of impact, see ccd.hpp for the exact guarantee.
 /// Both need thickness, eta <= 2 margin (checked): boxes inflated by margin each overlap

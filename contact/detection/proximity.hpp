@@ -1,6 +1,6 @@
 #pragma once
 /// \file proximity.hpp
-/// Proximity queries (spec 02 §11.1): the vertex-triangle (VF) and edge-edge (EE) pairs of
+/// Proximity queries (methods/integration-and-contact §11.1): the vertex-triangle (VF) and edge-edge (EE) pairs of
 /// triangle meshes whose distance is at most a thickness, with the weights of the closest
 /// points and a unit normal.
 ///
@@ -14,7 +14,7 @@
 /// an endpoint of either edge: for a closed set of triangles those are also found as VF
 /// pairs of the endpoint (Bridson et al. 2002 do the same).
 ///
-/// Weights: gamma such that g = sum_j gamma_j x_j = p^a - p^b (spec 02 §11.1), so
+/// Weights: gamma such that g = sum_j gamma_j x_j = p^a - p^b (methods/integration-and-contact §11.1), so
 /// VF gamma = (1, -w0, -w1, -w2) with w the barycentric coordinates of the closest point,
 /// EE gamma = (1 - s, s, -(1 - t), -t) with s, t the parameters of the closest points.
 ///
@@ -27,8 +27,8 @@
 /// triangle's orientation and the EE normal the sign that makes its largest component
 /// positive. Degenerate geometry (collapsed triangle, parallel edges) falls back to a fixed
 /// perpendicular of the longest edge. The normal is thus a deterministic function of the
-/// pair's positions. The detection has no memory: orienting by the previous step, as spec
-/// 02 §11.1 suggests for the near-zero case, is left to the caller.
+/// pair's positions. The detection has no memory: orienting by the previous step, as methods/integration-and-contact
+/// §11.1 suggests for the near-zero case, is left to the caller.
 ///
 /// Order: VF pairs, then EE pairs (`mesh_proximity`: its three lists in the order given
 /// there), each sorted by the primitive id of A, then of B. The output does not depend on

@@ -1,7 +1,7 @@
 #pragma once
 /// \file rod_detection.hpp
 /// Collision detection for elastic rods (hair): rod-rod contacts (self contact included)
-/// and contacts of rods with the scene's scripted obstacles (spec 03 §10.6, thesis
+/// and contacts of rods with the scene's scripted obstacles (methods/rod-contact §10.6, thesis
 /// Algorithm 5). Geometry only: the rods are their centrelines (vertex positions at the
 /// start of the step, x0, and at the end of the unconstrained step, x1) with a circular
 /// cross-section of radius r per rod; twist angles and the energy are not seen here.
@@ -45,7 +45,7 @@
 ///
 /// **Rod-obstacle** (`detect_rod_obstacles`; sphere, box, plane and mesh obstacles with
 /// scripted motion, posed with `ObstaclePose::at`). Obstacles are always treated
-/// continuously (spec 03 §10.6: rod-mesh CCD on x0 -> x1).
+/// continuously (methods/rod-contact §10.6: rod-mesh CCD on x0 -> x1).
 ///  - Vertex contacts, one per (vertex, obstacle): with phi the signed distance, a vertex
 ///    is a contact when phi(x0, t0) - r < proximity (toi = 0), or when its path x0 + s (x1 -
 ///    x0) comes within r of the obstacle (posed at t0 + s (t1 - t0)) during the step, at the

@@ -1,6 +1,6 @@
 #pragma once
 /// \file rod_group_solver.hpp
-/// The contact problem of one rod contact group and its two solvers (spec 03 §9, §10.3):
+/// The contact problem of one rod contact group and its two solvers (methods/rod-contact §9, §10.3):
 /// Gauss-Seidel over the contacts with the exact single-contact solver (the thesis), and a
 /// convergent alternative, a semismooth Newton method on the group's Fischer-Burmeister
 /// system (issue 7, the fix the thesis proposes in §14.4).
@@ -74,7 +74,7 @@ enum class SweepMode {
   friction,  ///< the tangential multipliers on their disk, the normal one fixed (staggered projections)
 };
 
-/// One Gauss-Seidel sweep over the contacts `ids` in that order (spec 03 §10.3, incremental
+/// One Gauss-Seidel sweep over the contacts `ids` in that order (methods/rod-contact §10.3, incremental
 /// form: x is kept equal to d_u + sum_k P_k lambda_k). Returns the largest change and the
 /// largest size of a multiplier in the sweep, both in the units of u (times `scale`).
 std::pair<double, double> gauss_seidel_sweep(std::vector<RodContactRows>& cs, const std::vector<int>& ids, GroupDisplacements& x,

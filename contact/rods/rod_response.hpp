@@ -1,6 +1,6 @@
 #pragma once
 /// \file rod_response.hpp
-/// The contact strategies of elastic rods (spec 03 §8, §10, §11), one code path for all of
+/// The contact strategies of elastic rods (methods/rod-contact §8, §10, §11), one code path for all of
 /// them as the thesis ran its baselines (§10.9): the strategies differ only in the
 /// compliance D that maps contact multipliers to displacements, in whether it is refreshed
 /// inside a constrained Newton loop, and in the inner contact solver.
@@ -16,7 +16,7 @@
 ///                                                                                          a sweep moves less than
 ///                                                                                          `sp_inner` x its first
 ///
-/// Per step (Algorithm 6 of the thesis, cleaned in spec 03 §10.8): detection on the
+/// Per step (Algorithm 6 of the thesis, cleaned in methods/rod-contact §10.8): detection on the
 /// unconstrained trajectory q -> q + d_DEL (rod-rod proximity or CCD, rod-obstacle CCD:
 /// contact/rods/rod_detection.hpp); per contact k the stencil weights gamma, the frame
 /// F_k = [n, t1, t2] and the scale s_k = (sum over free stencil vertices of gamma^2)^-1/2,
@@ -40,7 +40,7 @@
 ///          (the default) such a group, or one capped at `newton_max`, starts again from d_DEL
 ///          with projected re-linearisations (`projected_restart`, `restarted_groups`)
 /// Contact law: Signorini with Coulomb friction on the smooth cone, the constraint
-/// n^T d >= 0 of the end-of-step linearisation (spec 03 (4.1); `gap` adds the start gap).
+/// n^T d >= 0 of the end-of-step linearisation (methods/rod-contact (4.1); `gap` adds the start gap).
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -73,7 +73,7 @@ inline constexpr std::array<std::string_view, 4> rod_strategy_names = {"impulse"
 
 /// Which start gap enters the linearised constraint.
 enum class GapTerm {
-  none,         ///< n^T d >= 0 (spec 03 (4.1), the thesis)
+  none,         ///< n^T d >= 0 (methods/rod-contact (4.1), the thesis)
   penetration,  ///< n^T d >= -min(gap, 0): an overlap at the start is pushed out
   full,         ///< n^T d >= -gap: a proximity contact may close its gap
   start,        ///< n^T d >= -gap_0, gap_0 the start distance along n: a contact found by CCD at
@@ -106,7 +106,7 @@ inline constexpr std::array<std::string_view, 3> round_start_names = {"last", "f
 /// `gs_max`, then with `newton` semismooth Newton to `contact_tol` (the step fails if it cannot).
 using contact::ContactSolver;
 
-/// Parameters shared by every rod strategy (one runtime struct, spec 03 §16.2).
+/// Parameters shared by every rod strategy (one runtime struct, methods/rod-contact §16.2).
 struct RodContactParams {
   double friction = 0.2;       ///< Coulomb coefficient of rod-rod contacts (obstacles: their own `friction`)
   RodDetectionParams detection{.rod_ccd = true};  ///< proximity radius, rod-rod CCD, self contact
@@ -236,7 +236,7 @@ struct GroupStats {
   }
 };
 
-/// Union-find over rods: contact groups (spec 03 §10.2), deterministic order (rods and
+/// Union-find over rods: contact groups (methods/rod-contact §10.2), deterministic order (rods and
 /// contacts ascending within a group, groups by their smallest rod). `separate = false`
 /// joins every contacted rod into one monolithic group (param `groups`).
 std::vector<std::vector<int>> contact_groups(int num_rods, const std::vector<RodContactRows>& contacts,

@@ -1,7 +1,7 @@
 #pragma once
 /// \file rod_verify.hpp
 /// Independent brute-force checks of rod configurations, for tests and the penetration
-/// measurements of spec 03 V-09: no BVH, no CCD, nothing shared with rod_detection.hpp
+/// measurements of methods/rod-contact V-09: no BVH, no CCD, nothing shared with rod_detection.hpp
 /// beyond the basic distance functions (detection::segment_segment_distance and the
 /// obstacles' signed distance `ObstaclePose::distance`). O(#E^2) and O(#V #obstacles):
 /// meant for small scenes.

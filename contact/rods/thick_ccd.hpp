@@ -30,7 +30,7 @@
 /// eta / (approach speed) (in fractions of the step). After `max_iterations` distance
 /// evaluations the pair is reported at the current time with `conservative` set.
 ///
-/// Edge-edge normal (from b to a, spec 03 §4.1): the direction of the closest points'
+/// Edge-edge normal (from b to a, methods/rod-contact §4.1): the direction of the closest points'
 /// difference p^a - p^b when their distance exceeds 1e-8 times the longer edge: for a thick
 /// pair at its time of impact that distance is about delta, so this is the limit
 /// t -> toi^-, and it is the cross product of the edges when the closest points are

@@ -1,7 +1,7 @@
 #pragma once
 /// \file cholmod_direct.hpp
 /// `CholmodDirect`: supernodal sparse Cholesky LL^T by CHOLMOD (SuiteSparse), the open
-/// stand-in for the thesis's PARDISO (spec 04 §10.6, §13 "Direct policies"). Optional:
+/// stand-in for the thesis's PARDISO (methods/multigrid §10.6, §13 "Direct policies"). Optional:
 /// compiled only with -DWEFT_WITH_CHOLMOD=ON. CHOLMOD's Supernodal module is GPL-2+, so a
 /// binary linking this class is GPL-bound.
 ///

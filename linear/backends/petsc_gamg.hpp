@@ -1,7 +1,7 @@
 #pragma once
 /// \file petsc_gamg.hpp
 /// `PetscGamg`: PETSc's CG preconditioned by PCGAMG smoothed aggregation, the distributed
-/// baseline of spec 04 §13 ("Distributed back end (PETSc)") and §14. Optional: compiled only
+/// baseline of methods/multigrid §13 ("Distributed back end (PETSc)") and §14. Optional: compiled only
 /// with -DWEFT_WITH_PETSC=ON.
 ///
 /// - The system is prefiltered first (linear/prefilter.hpp), so GAMG sees the same SPD
@@ -11,7 +11,7 @@
 /// - Near-null space: the 6 rigid-body modes at `SolveContext::positions` (centred), filtered
 ///   (K <- S K) and orthonormalised (modified Gram-Schmidt, twice), attached explicitly with
 ///   MatNullSpaceCreate + MatSetNearNullSpace. Without positions: the 3 translations only.
-/// - CG with the natural norm ||r||_{M^-1} (KSP_NORM_NATURAL, the thesis criterion, spec 04
+/// - CG with the natural norm ||r||_{M^-1} (KSP_NORM_NATURAL, the thesis criterion, methods/multigrid
 ///   §8), relative tolerance 1e-5 and zero initial guess (x's value on entry is ignored).
 ///   Smoothers are PETSc's defaults (Chebyshev / Jacobi).
 /// - Strength threshold: the thesis keeps a connection when mu_ij > theta * max_k mu_ik
@@ -51,7 +51,7 @@ class PetscGamg {
   /// Checkpoints: the matrix structure is rebuilt the same; kept prolongators are not (resume_caveat).
   static constexpr bool stateless = true;
   struct Params {
-    double tolerance = 1e-5;      ///< ||r_i||_{M^-1} / ||r_0||_{M^-1} (spec 04 §8)
+    double tolerance = 1e-5;      ///< ||r_i||_{M^-1} / ||r_0||_{M^-1} (methods/multigrid §8)
     int max_iterations = 1000;
     double theta = 0.48;          ///< thesis strength threshold, mapped onto PETSc's (see the file comment)
     double threshold = 0;         ///< PETSc's -pc_gamg_threshold on every level (0: PETSc's default, the

@@ -1,4 +1,4 @@
-// One explicit instantiation per translation unit (STYLE.md §4, §9).
+// One explicit instantiation per translation unit (docs/architecture.md, "Pre-built combinations").
 #include "policies/combo_factory.hpp"
 #include "policies/presets.hpp"
 

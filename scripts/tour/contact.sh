@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Tour, contact (docs/tour/contact.md): impulses, linear compliance and ADONIS on the whip of
-# thesis §9.1 (Figure 9.2, spec 03 V-20): a rotating handle whips a thin elastic rod against
+# thesis §9.1 (Figure 9.2, methods/rod-contact V-20): a rotating handle whips a thin elastic rod against
 # the edge of a wall, again and again.
 #
 #   scripts/tour/contact.sh [--quick] [OUT_DIR]          (default OUT_DIR: out/tour/contact)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Tour, integrators (docs/tour/integrators.md): backward Euler solved as root finding on the
 # residual (cloth_root_direct) against minimisation of the incremental potential
-# (cloth_ip_direct), on the folded hinge of thesis §6.5 (spec 02 E2).
+# (cloth_ip_direct), on the folded hinge of thesis §6.5 (methods/integration-and-contact E2).
 #
 #   scripts/tour/integrators.sh [--quick] [OUT_DIR]      (default OUT_DIR: out/tour/integrators)
 #

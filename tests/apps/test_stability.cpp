@@ -176,7 +176,7 @@ TEST_CASE("V-20 with the start gap: on the near-wall whip at 10 rad/s ADONIS hol
 }
 
 TEST_SUITE("slow") {
-  // Spec 03 V-20 in reduced form (bench/rods/figure_9_2.sh runs the full sweep): the whip of
+  // methods/rod-contact V-20 in reduced form (bench/rods/figure_9_2.sh runs the full sweep): the whip of
   // scenes/whip.json at the highest speed of the sweep, 20 rad/s, set up as the figure's sweep
   // (the handle starting 0.3 rad before the wall, no gravity: see the script), 1 s simulated
   // instead of 5 s, on a coarse sweep of 8 steps from 0.5 ms to 100 ms. About 1-2 minutes.

@@ -473,7 +473,7 @@ TEST_SUITE("slow") {
       auto sim = make_simulator(scene);
       run_checked(*sim, contact_thickness(*sim));
       const ObstacleSpec& sphere = scene.spec.obstacles[0];
-      // Y = 100 MPa and h = 1 mm (spec 01 §7.1) are stiff in bending: after 2 s the corners hang
+      // Y = 100 MPa and h = 1 mm (methods/shells §7.1) are stiff in bending: after 2 s the corners hang
       // well below the top of the sphere (measured -0.22 to -0.48 at 11 x 11) but not below its equator.
       for (int corner : {0, n - 1, n * (n - 1), n * n - 1}) CHECK(sim->state().position(corner).z() < sphere.center.z() + sphere.radius - 0.005);
       // ... and its centre rests on the sphere, at the contact thickness.

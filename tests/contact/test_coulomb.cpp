@@ -1,4 +1,4 @@
-// The single-contact Coulomb solver (contact/coulomb.hpp, spec 03 §9, V-04) and the
+// The single-contact Coulomb solver (contact/coulomb.hpp, methods/rod-contact §9, V-04) and the
 // Gauss-Seidel contact solve over it (contact/contact_gauss_seidel.hpp): the analytic
 // cases, thousands of random SPD problems with each regime checked against its
 // definition, anisotropic W, mu = 0, degenerate W; GS on random multi-contact problems
@@ -33,7 +33,7 @@ Matrix3d random_spd(std::mt19937& rng, double lo, double hi) {
   return Q * l.asDiagonal() * Q.transpose();
 }
 
-/// The regime by its definition (spec 03 §9.1), for an invertible W.
+/// The regime by its definition (methods/rod-contact §9.1), for an invertible W.
 CoulombRegime expected_regime(const Matrix3d& W, const Vector3d& b, double mu) {
   if (b[0] >= 0) return CoulombRegime::take_off;
   const Vector3d r = W.fullPivLu().solve(-b);

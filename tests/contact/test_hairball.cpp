@@ -1,4 +1,4 @@
-// The hair balls of thesis §9.2 (scenes/hairball_*.json, spec 03 §14.2): the sphere_hair
+// The hair balls of thesis §9.2 (scenes/hairball_*.json, methods/rod-contact §14.2): the sphere_hair
 // generator seeds curly rods uniformly over half the sphere; the held roots follow the
 // sphere's multi-phase motion exactly; a small hair ball runs with rod-rod and rod-sphere
 // contacts and without penetrating the sphere; slow: the 250-rod ball under ADONIS at 10 ms
@@ -290,7 +290,7 @@ TEST_SUITE("slow") {
   TEST_CASE("hairball: with re-detection ADONIS's steps leave no rods interpenetrating while one detection per step (the thesis) does not") {
     // The 250-rod ball at 10 ms, 10 steps (the hair lands on the sphere and on itself). The
     // seeding keeps every pair of rods `clearance` apart, so the count starts at zero.
-    // The thesis detects once per step on q -> q + d_DEL (spec 03 §10.6); the response of a
+    // The thesis detects once per step on q -> q + d_DEL (methods/rod-contact §10.6); the response of a
     // group can then carry a rod through another that had no contact. The default re-detects
     // on q -> q + d until no new contact appears (`contact.redetections`).
     // A rod pair already in contact can also end the step overlapping: its contact holds

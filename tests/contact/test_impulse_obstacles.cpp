@@ -1,6 +1,6 @@
 // Impulse contact against analytic obstacles: vertices dropped on every obstacle kind end
 // no step inside and come to rest; fast vertices and fast obstacles do not tunnel; the
-// incline of spec 02 E7 sticks below tan(alpha) = mu and slides above it with
+// incline of methods/integration-and-contact E7 sticks below tan(alpha) = mu and slides above it with
 // acceleration g (sin alpha - mu cos alpha); pinned vertices are never moved.
 #include <doctest/doctest.h>
 
@@ -136,7 +136,7 @@ TEST_SUITE("contact") {
   }
 
   TEST_CASE("impulse obstacles: sheet on an incline sticks below tan(alpha) = mu and slides above it at g (sin alpha - mu cos alpha)") {
-    // Spec 02 E7 with a 3x3-vertex sheet on the plane z = 0, the incline given by tilting
+    // methods/integration-and-contact E7 with a 3x3-vertex sheet on the plane z = 0, the incline given by tilting
     // gravity: g = 9.81 (sin alpha, 0, -cos alpha). Through the full simulator.
     const double mu = 0.5, h = 1e-3, g = 9.81, dt = 1.0 / 240;
     const double alpha_c = std::atan(mu);
@@ -173,7 +173,7 @@ TEST_SUITE("contact") {
         CHECK(std::abs(dx) <= 1e-9);  // sticks
         CHECK(std::abs(vx) <= 1e-9);
       } else {
-        // Slides: after j steps v = j dt a (spec 02 E7), x = dt^2 a j (j + 1) / 2.
+        // Slides: after j steps v = j dt a (methods/integration-and-contact E7), x = dt^2 a j (j + 1) / 2.
         CHECK(vx == doctest::Approx(steps * dt * a_expected).epsilon(0.05));
         CHECK(dx == doctest::Approx(dt * dt * a_expected * steps * (steps + 1) / 2).epsilon(0.05));
         MESSAGE("alpha / alpha_c = " << factor << ": a = " << vx / (steps * dt) << " m/s^2, expected " << a_expected);

@@ -1,7 +1,7 @@
-// Linear compliance contact on cloth (contact/linear_compliance.hpp, spec 03 §8 (b)): the
-// incline of spec 02 E7 through the full simulator; sheets dropped on a plane, a sphere and
+// Linear compliance contact on cloth (contact/linear_compliance.hpp, methods/rod-contact §8 (b)): the
+// incline of methods/integration-and-contact E7 through the full simulator; sheets dropped on a plane, a sphere and
 // another sheet end no deeper than the tolerance and never intersect; every contact solve
-// ends with its FB residual below the tolerance (spec 03 §15 V-06); without a system the
+// ends with its FB residual below the tolerance (methods/rod-contact §15 V-06); without a system the
 // response is Impulse's (V-15: Linear with K := M is Impulse); and the difference the
 // compliance makes: a stiff sheet landing on one point slows down as a whole.
 #include <doctest/doctest.h>
@@ -80,7 +80,7 @@ TEST_SUITE("contact") {
   }
 
   TEST_CASE("linear compliance: sheet on an incline sticks below tan(alpha) = mu and slides above it at g (sin alpha - mu cos alpha)") {
-    // Spec 02 E7 with a 3x3-vertex sheet on the plane z = 0, the incline given by tilting
+    // methods/integration-and-contact E7 with a 3x3-vertex sheet on the plane z = 0, the incline given by tilting
     // gravity. The sheet moves rigidly, so A^-1 acts on the uniform impulses as M~^-1 and
     // the Coulomb solve per contact is exact.
     const double mu = 0.5, h = 1e-3, g = 9.81, dt = 1.0 / 240, tol = 1e-6;
@@ -203,7 +203,7 @@ TEST_SUITE("contact") {
     // In the landing step only the centre vertex is in contact. With Impulse (D = M^-1) the
     // response is local: the centre vertex alone stops, its neighbours keep falling, and
     // the sheet is dented by about dt v0 at the contact, which the elastic forces undo only
-    // in later steps (spec 03 §8 (a): "large localized deformation"). With D = A^-1 the
+    // in later steps (methods/rod-contact §8 (a): "large localized deformation"). With D = A^-1 the
     // impulse spreads through the elastic coupling in the same step: the neighbours slow
     // down too and the dent is much smaller; the impulse needed is correspondingly larger.
     const double dt = 1.0 / 240, v0 = 1.0;

@@ -1,5 +1,5 @@
-// Obstacle contact as equality constraints inside the implicit solve (BW98; spec 02 §10 and
-// §14, spec 04 §7): contact/obstacle_constraints.hpp with the plumbing of
+// Obstacle contact as equality constraints inside the implicit solve (BW98; methods/integration-and-contact §10 and
+// §14, methods/multigrid §7): contact/obstacle_constraints.hpp with the plumbing of
 // integrators/step_system.hpp, under modified PCG (DiagPcg), prefiltered PCG (SaPpcg,
 // DiagPpcg) and the direct solver.
 #include <doctest/doctest.h>
@@ -455,7 +455,7 @@ TEST_SUITE("contact") {
   }
 
   TEST_CASE("obstacle constraints: friction on an inclined plane sticks below and slides above the Coulomb angle") {
-    // Spec 02 E7 with a sheet: the plane is z = 0 and gravity is tilted by alpha about y.
+    // methods/integration-and-contact E7 with a sheet: the plane is z = 0 and gravity is tilted by alpha about y.
     const double mu = 0.5, g = 9.81, alpha_c = std::atan(mu);
     for (double factor : {0.95, 1.05, 1.5}) {
       const double alpha = factor * alpha_c;

@@ -1,4 +1,4 @@
-// Contact laws of elastic rods through the whole pipeline (spec 03 §15), for every strategy:
+// Contact laws of elastic rods through the whole pipeline (methods/rod-contact §15), for every strategy:
 //  - stick and slip of a rod lying across an inclined plane: it sticks for tan(alpha) below mu
 //    and slides above, tested at 5% either side of the threshold, and the sliding rod follows
 //    the backward Euler law of the acceleration g (sin alpha - mu cos alpha);

@@ -1,5 +1,5 @@
 // The convergent contact solver of the rod strategies (issue 7: `contact.solver = newton`,
-// contact/rods/rod_group_solver.hpp) and the contact laws at convergence (spec 03 §15):
+// contact/rods/rod_group_solver.hpp) and the contact laws at convergence (methods/rod-contact §15):
 // V-05 (the stick case plain Gauss-Seidel cannot finish), V-06 Signorini, V-07 Coulomb,
 // V-12 staggered projections and ADONIS reach the same fixed point, V-13 ordering
 // independence, V-14 contact groups against one monolithic group and thread counts.
@@ -46,7 +46,7 @@ Json rod(Eigen::Vector3d root, Eigen::Vector3d dir, double length, int vertices,
   return r;
 }
 
-// Small problems (spec 03 §15: "small problem" = at most 50 contacts). Rods of radius 0.1 mm
+// Small problems (methods/rod-contact §15: "small problem" = at most 50 contacts). Rods of radius 0.1 mm
 // start 10 um apart, so that the first step already has its contacts.
 const double gap0 = 2e-4 + 1e-5;
 
@@ -486,7 +486,7 @@ TEST_SUITE("rods") {
       for (const auto& k : ref.contact().last_contacts()) lambda_max = std::max(lambda_max, k.lambda[0]);
       REQUIRE(lambda_max > 0);
       scale = d0.lpNorm<Eigen::Infinity>();
-      // Spec 03 V-13: with friction, d agrees to about contact_tol times the problem's
+      // methods/rod-contact V-13: with friction, d agrees to about contact_tol times the problem's
       // condition: here the sensitivity |P W^-1| of d to a residual in u.
       const double amp = contact_sensitivity(ref);
       MESSAGE("mu " << mu << ": " << r0.contact.contacts << " contacts, |P W^-1| = " << amp);
@@ -507,7 +507,7 @@ TEST_SUITE("rods") {
                   doctest::Approx(ref.contact().last_contacts()[k].lambda[0]).epsilon(1e-6).scale(1e-6 * lambda_max));
       }
     }
-    // With Gauss-Seidel capped, the order shows (reported, not asserted: spec 03 V-13).
+    // With Gauss-Seidel capped, the order shows (reported, not asserted: methods/rod-contact V-13).
     Json e = {{"contact", {{"gs_max", 3}, {"friction", 0.3}}}};
     auto a = make_simulator(rod_scene("rods_linear", stack(), 0.002, 1.0, e));
     e["contact"]["order_seed"] = 5;

@@ -673,7 +673,7 @@ TEST_SUITE("contact") {
           CHECK(k.normal.norm() == doctest::Approx(1).epsilon(1e-12));
           if ((pa - pb).norm() > 1e-6) CHECK((pa - pb).normalized().dot(k.normal) > 1 - 1e-9);
           // Closest points interior to both edges: the normal is orthogonal to both (it is
-          // their cross product, spec 03 §4.1 and V-02).
+          // their cross product, methods/rod-contact §4.1 and V-02).
           if (k.s_a > 1e-6 && k.s_a < 1 - 1e-6 && k.s_b > 1e-6 && k.s_b < 1 - 1e-6) {
             CHECK(std::abs(k.normal.dot((at(i + 1) - at(i)).normalized())) < 1e-6);
             CHECK(std::abs(k.normal.dot((at(j + 1) - at(j)).normalized())) < 1e-6);

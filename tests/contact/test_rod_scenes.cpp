@@ -1,6 +1,6 @@
 // Elastic rods through the whole pipeline (scene JSON -> RodSimulator): free fall, rest
 // shapes, dissipation, the stick/slip threshold of a rod on a plane for every strategy
-// (spec 03 V-05), no penetration of a plane or of another rod, and the strategy reductions
+// (methods/rod-contact V-05), no penetration of a plane or of another rod, and the strategy reductions
 // (V-15: ADONIS with an infinite stretch tolerance is linear compliance).
 #include <doctest/doctest.h>
 
@@ -131,7 +131,7 @@ TEST_SUITE("rods") {
         REQUIRE_MESSAGE(rep.ok(), rep.message);
         CHECK(rep.contact.obstacle_contacts == 12);
         // Plain Gauss-Seidel stalls on the stuck stiff rod with D = K^-1 (the thesis' limitation,
-        // spec 03 §14.4): where it stops above the tolerance, the error is bounded by its residual.
+        // methods/rod-contact §14.4): where it stops above the tolerance, the error is bounded by its residual.
         const double tol = rep.contact.gs_unconverged ? 1e-11 + 10 * rep.contact.gs_residual : 1e-11;
         if (rep.contact.gs_unconverged) MESSAGE(combo << " at " << ratio << " mu g: Gauss-Seidel stopped at residual " << rep.contact.gs_residual << " m after " << rep.contact.gs_sweeps << " sweeps");
         if (combo == "rods_impulse") CHECK(rep.contact.gs_unconverged == 0);  // a diagonal W: one sweep is exact

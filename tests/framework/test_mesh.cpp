@@ -97,7 +97,7 @@ TEST_SUITE("framework") {
     CHECK_THROWS_AS(make_l_shape({1, 1}, {8, 9}, Tessellation::regular, 1), ConfigError);
   }
 
-  TEST_CASE("hinges: labelling follows spec 01 §6.1") {
+  TEST_CASE("hinges: labelling follows methods/shells §6.1") {
     const auto m = to_mesh(make_rectangle({1, 1}, {6, 5}, Tessellation::irregular, 4));
     REQUIRE(m.num_hinges() > 0);
     for (const auto& h : m.hinges()) {

@@ -30,7 +30,7 @@ Outcome first_step(const std::string& combo, double dt, std::vector<std::string>
 }  // namespace
 
 TEST_SUITE("integrators") {
-  TEST_CASE("hinge (spec 01 §7.2): the folded state holds the bending energy the spec derives") {
+  TEST_CASE("hinge (methods/shells §7.2): the folded state holds the bending energy the spec derives") {
     auto sim = make_simulator(load_scene(hinge_path()));
     const EnergyReport e = sim->energies();
     double bending = 0, membrane = 0;
@@ -48,7 +48,7 @@ TEST_SUITE("integrators") {
     CHECK(g.segment<3>(9).norm() == doctest::Approx(3.92699).epsilon(1e-5));
   }
 
-  TEST_CASE("hinge (spec 01 §7.2): the tan variant holds 12 k = 0.05 J and pushes each wing with 10 N") {
+  TEST_CASE("hinge (methods/shells §7.2): the tan variant holds 12 k = 0.05 J and pushes each wing with 10 N") {
     auto sim = make_simulator(load_scene(hinge_path(), {"combo=cloth_tan_ip_direct"}));
     double bending = -1;
     for (const auto& [n, v] : sim->energies().terms)
@@ -61,8 +61,8 @@ TEST_SUITE("integrators") {
     CHECK(g.segment<3>(9).norm() == doctest::Approx(10.0).epsilon(1e-6));
   }
 
-  TEST_CASE("hinge (spec 02 E2): the converged step matches the independent reference state") {
-    // Reference of spec 02 E2 for dt = 1/240 (mpmath, 30-40 digits), in cm.
+  TEST_CASE("hinge (methods/integration-and-contact E2): the converged step matches the independent reference state") {
+    // Reference of methods/integration-and-contact E2 for dt = 1/240 (mpmath, 30-40 digits), in cm.
     const Eigen::Vector3d ref[4] = {{0.9618752, 0.0095364, 0.9904636}, {0.0190520, 0.2452104, 0.7547896},
                                     {0.0190728, 0.9523596, 1.4618530}, {0.0190728, -0.4618532, 0.0476404}};
     const Outcome o = first_step("cloth_ip_direct", 1.0 / 240, {});
@@ -76,7 +76,7 @@ TEST_SUITE("integrators") {
   // Iteration counts to |f| / |f0| < 1e-10 (bench/bench_hinge prints the full table). The
   // spec's independent reference: pure Newton 27 / 26 / 23, backtracking on |f|^2 162 then
   // stalls; the thesis: minimisation needs 2-5x fewer iterations than root finding.
-  TEST_CASE("hinge (spec 02 E2): pure Newton converges in the reference count at every step size") {
+  TEST_CASE("hinge (methods/integration-and-contact E2): pure Newton converges in the reference count at every step size") {
     for (double dt : {1.0 / 240, 5.0 / 240, 10.0 / 240}) {
       CAPTURE(dt);
       const Outcome o = first_step("cloth_ip_direct", dt, {"integrator.line_search=full_step", "integrator.hessian=exact"});
@@ -86,7 +86,7 @@ TEST_SUITE("integrators") {
     }
   }
 
-  TEST_CASE("hinge (spec 02 E2): globalised minimisation converges where root finding stalls") {
+  TEST_CASE("hinge (methods/integration-and-contact E2): globalised minimisation converges where root finding stalls") {
     for (double dt : {1.0 / 240, 5.0 / 240, 10.0 / 240}) {
       CAPTURE(dt);
       const Outcome root = first_step("cloth_root_direct", dt, {});

@@ -9,7 +9,7 @@ using namespace weft;
 using namespace weft::integrators;
 
 namespace {
-// The 1D counterexample of spec 02 §5.3 (thesis Fig. 6.1, typo fixed):
+// The 1D counterexample of methods/integration-and-contact §5.3 (thesis Fig. 6.1, typo fixed):
 // W(x) = x^4 - 6x^2 - 72x, W'(x) = 4x^3 - 12x - 72 = 4(x - 3)(x^2 + 3x + 6), W'' = 12x^2 - 12.
 double W(double x) { return x * x * x * x - 6 * x * x - 72 * x; }
 double dW(double x) { return 4 * x * x * x - 12 * x - 72; }
@@ -28,7 +28,7 @@ class Quartic final : public support::DiagonalProblem {
   double merit_scale() const override { return 0; }
 };
 // E(d) = C + (d - 1)^4 / 4 + (d - 1)^2 / 2 with a large constant C: near the minimum the
-// decrease of E is far below the round-off of E itself (spec 02 §6.6).
+// decrease of E is far below the round-off of E itself (methods/integration-and-contact §6.6).
 class OffsetQuartic final : public support::DiagonalProblem {
  public:
   explicit OffsetQuartic(double c) : DiagonalProblem(1), c_(c) {}
@@ -102,7 +102,7 @@ TEST_SUITE("integrators") {
     CHECK(std::abs(dW(-1)) == doctest::Approx(64));
   }
 
-  // Reference behaviour of spec 02 §16 E1: from x0 = 0 both merits reach x = 3 (the energy
+  // Reference behaviour of methods/integration-and-contact §16 E1: from x0 = 0 both merits reach x = 3 (the energy
   // merit in one step once the direction descends, the residual merit after a detour
   // towards x = -1); from x0 = -0.5 and +0.5 the energy merit needs fewer iterations
   // (spec: 5 vs 11 and 6 vs 9 with plain halving; our backtracking interpolates).
@@ -136,7 +136,7 @@ TEST_SUITE("integrators") {
     }
   }
 
-  TEST_CASE("1D example: the reference iteration counts of spec 02 E1 with plain halving") {
+  TEST_CASE("1D example: the reference iteration counts of methods/integration-and-contact E1 with plain halving") {
     // Halving (rho = 1/2, c1 = 1e-4), exact Hessian, ascent directions reversed.
     struct Case { double x0; int energy, residual; };
     for (const Case c : {Case{0.0, 1, 2}, Case{-0.5, 5, 11}, Case{0.5, 6, 9}}) {

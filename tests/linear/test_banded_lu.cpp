@@ -15,7 +15,7 @@ namespace {
 
 constexpr int kBand = 10;  // half-bandwidth of a discrete elastic rod Hessian
 
-/// A matrix of discrete-elastic-rod structure (spec 03 §13, V-03): n = 4V - 1 interleaved
+/// A matrix of discrete-elastic-rod structure (methods/rod-contact §13, V-03): n = 4V - 1 interleaved
 /// DoFs, one random symmetric 11 x 11 block per interior vertex i at DoF 4(i - 1) (the
 /// stencil x_{i-1}, theta_{i-1}, x_i, theta_i, x_{i+1}), plus `shift` on the diagonal.
 /// spd: every block is B B^T (PSD); otherwise each block is symmetric with random signs.

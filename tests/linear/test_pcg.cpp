@@ -1,4 +1,4 @@
-// Krylov solvers with constraints (spec 04 §7-8, checklist V3, V4, V23): block Jacobi,
+// Krylov solvers with constraints (methods/multigrid §7-8, checklist V3, V4, V23): block Jacobi,
 // BW98 modified PCG (DiagPcg) and prefiltered PCG (DiagPpcg), against dense references.
 #include <doctest/doctest.h>
 
@@ -43,7 +43,7 @@ class ExactInverse {
 };
 static_assert(linear::Preconditioner<ExactInverse>);
 
-/// z = -r: negative definite, the breakdown r^T z <= 0 of spec 04 §6.2.
+/// z = -r: negative definite, the breakdown r^T z <= 0 of methods/multigrid §6.2.
 class NegativeIdentity {
  public:
   static constexpr std::string_view name = "negative";
@@ -288,7 +288,7 @@ TEST_SUITE("linear") {
               diag.rep.iterations, " it), diag_ppcg ", pdiag.rep.energy_error, " (", pdiag.rep.iterations,
               " it), exact ppcg ", exact.rep.energy_error, " (", exact.rep.iterations, " it)");
       // The residual test lets the weak preconditioner stop with a much larger energy error
-      // than a strong one (spec 04 §8 fairness caveat); the exact one is at round-off.
+      // than a strong one (methods/multigrid §8 fairness caveat); the exact one is at round-off.
       CHECK(diag.rep.energy_error > 1e-9);
       CHECK(diag.rep.energy_error > 1e3 * exact.rep.energy_error);
       if (!contacts) {
@@ -299,7 +299,7 @@ TEST_SUITE("linear") {
         CHECK(rel(diag.x, pdiag.x) <= 1e-12);
       } else {
         // Partial (contact) constraints: blockdiag(Ahat)^-1 inverts the projected blocks
-        // S_i A_ii S_i, MPCG's S_i A_ii^-1 S_i does not (spec 04 §7.5). On this fixture PPCG
+        // S_i A_ii S_i, MPCG's S_i A_ii^-1 S_i does not (methods/multigrid §7.5). On this fixture PPCG
         // needs less than half the iterations and stops with a somewhat (1.2-1.4x) smaller
         // energy error; only the direction of the latter is asserted.
         CHECK(2 * pdiag.rep.iterations < diag.rep.iterations);

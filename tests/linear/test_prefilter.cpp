@@ -1,4 +1,4 @@
-// Prefiltering (spec 04 §7.3, checklist V1-V2): filter algebra and the prefiltered matrix.
+// Prefiltering (methods/multigrid §7.3, checklist V1-V2): filter algebra and the prefiltered matrix.
 #include <doctest/doctest.h>
 
 #include <Eigen/Eigenvalues>

@@ -1,4 +1,4 @@
-// Smoothed aggregation multigrid (spec 04 §4-6, checklist V5-V14).
+// Smoothed aggregation multigrid (methods/multigrid §4-6, checklist V5-V14).
 #include <doctest/doctest.h>
 
 #include <Eigen/Eigenvalues>
@@ -56,7 +56,7 @@ struct PcgResult {
   double relative = 0;
 };
 
-/// Plain PCG with the spec's stopping test ||r||_{M^-1} / ||r_0||_{M^-1} < tol (spec 04 §8).
+/// Plain PCG with the spec's stopping test ||r||_{M^-1} / ||r_0||_{M^-1} < tol (methods/multigrid §8).
 template <class Prec>
 PcgResult pcg(const BlockCsr& A, const Eigen::VectorXd& b, const Prec& M, double tol = 1e-5, int max_it = 500) {
   PcgResult out;

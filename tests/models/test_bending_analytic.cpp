@@ -1,5 +1,5 @@
 // Bending on analytic shapes and near degeneracies, finite-difference checks of both
-// assembly paths, and the O(n) runtime of the refactored path (spec 01 §9 items 1, 2, 26,
+// assembly paths, and the O(n) runtime of the refactored path (methods/shells §9 items 1, 2, 26,
 // 28, 29, 31).
 #include <doctest/doctest.h>
 
@@ -48,7 +48,7 @@ MeshData equilateral(int nx, int ny) {
   return m;
 }
 
-/// Sum of abar_e / 3 over the interior edges (spec 01 §9 item 26).
+/// Sum of abar_e / 3 over the interior edges (methods/shells §9 item 26).
 template <class Model>
 double hinge_area(const Model& model, const Scene& scene) {
   const auto& X = scene.mesh.rest();
@@ -102,7 +102,7 @@ std::vector<Config> fd_configs() {
 }  // namespace
 
 TEST_SUITE("models") {
-  TEST_CASE("bending analytic: cylinder and sphere on an equilateral mesh give 3 and 4 times A/R^2 (spec 01 §9 item 26)") {
+  TEST_CASE("bending analytic: cylinder and sphere on an equilateral mesh give 3 and 4 times A/R^2 (methods/shells §9 item 26)") {
     const MeshData m = equilateral(41, 41);
     const Scene scene = support::make_scene(m);  // k = 1, flat rest state
     const HingeBending<ThetaEnergy> model(scene, {});
@@ -136,7 +136,7 @@ TEST_SUITE("models") {
     CHECK(r <= 4.1);
   }
 
-  TEST_CASE_TEMPLATE("bending analytic: gradient and Hessian of both assembly paths match central differences (spec 01 §9 items 1 and 2)",
+  TEST_CASE_TEMPLATE("bending analytic: gradient and Hessian of both assembly paths match central differences (methods/shells §9 items 1 and 2)",
                      Angle, ThetaEnergy, TanEnergy) {
     for (const auto& c : fd_configs<Angle>()) {
       for (BendingAssembly path : {BendingAssembly::refactored, BendingAssembly::per_hinge}) {
@@ -157,7 +157,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("bending analytic: edge-collapse sequence keeps grad theta bounded (spec 01 §9 item 29)") {
+  TEST_CASE("bending analytic: edge-collapse sequence keeps grad theta bounded (methods/shells §9 item 29)") {
     // Hinge edge x1-x2 of length l0 = 10^-k; both wings project inside the segment.
     auto shape = [](double l0) {
       return support::hinge({0.4 * l0, 1, 0}, {0, 0, 0}, {l0, 0, 0}, {0.6 * l0, -0.8, -0.5});
@@ -203,7 +203,7 @@ TEST_SUITE("models") {
     MESSAGE(msg);
   }
 
-  TEST_CASE_TEMPLATE("bending analytic: altitude-collapse sequence through the refactored path (spec 01 §9 item 28)", Angle, ThetaEnergy,
+  TEST_CASE_TEMPLATE("bending analytic: altitude-collapse sequence through the refactored path (methods/shells §9 item 28)", Angle, ThetaEnergy,
                      TanEnergy) {
     // Rest angle ~0.3 rad; the deformed states have theta ~ -0.56 rad whatever h0.
     const Scene scene = support::make_scene(support::hinge({0.4, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0.6, -0.8, 0.25}));
@@ -233,7 +233,7 @@ TEST_SUITE("models") {
 }
 
 TEST_SUITE("slow") {
-  TEST_CASE("bending analytic: the refactored path is O(n) over the 36 drape grids and faster than per hinge (spec 01 §9 item 31)") {
+  TEST_CASE("bending analytic: the refactored path is O(n) over the 36 drape grids and faster than per hinge (methods/shells §9 item 31)") {
 #ifdef _OPENMP
     const int threads = omp_get_max_threads();
     omp_set_num_threads(1);
@@ -301,7 +301,7 @@ TEST_SUITE("slow") {
     // so the fit rises with the cache misses: 1.1 on an idle AMD EPYC, 1.110-1.117 idle and 1.161
     // beside a test run on an Intel Xeon with 2 MB of L2 (2026-11-28), 1.257 on the CI machine
     // beside the slow suite (2026-11-30). Over this range n log n fits about 1.15, so timing cannot
-    // hold spec 01's 1.1 nor tell n log n from n; what it can tell is quadratic work (a search over
+    // hold methods/shells's 1.1 nor tell n log n from n; what it can tell is quadratic work (a search over
     // the hinges per hinge fits 2), so the bound sits halfway between in the exponent. The
     // operation count is linear by construction; this machine has no hardware counters to count it.
     CHECK(k <= 1.5);

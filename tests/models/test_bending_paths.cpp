@@ -1,6 +1,6 @@
 // The three implementations of the hinge-bending derivatives (refactored per triangle,
 // closed form per hinge, forward-mode AD) against each other, and the properties the
-// refactored assembly must have (spec 01 §9 items 5, 6, 13, 15).
+// refactored assembly must have (methods/shells §9 items 5, 6, 13, 15).
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -94,7 +94,7 @@ double ulps(const BlockCsr& a, const BlockCsr& b) { return (values(a) - values(b
 }  // namespace
 
 TEST_SUITE("models") {
-  TEST_CASE_TEMPLATE("bending paths: refactored and per-hinge and autodiff Hessians agree to 16 ulp (spec 01 §9 item 5)", Angle,
+  TEST_CASE_TEMPLATE("bending paths: refactored and per-hinge and autodiff Hessians agree to 16 ulp (methods/shells §9 item 5)", Angle,
                      ThetaEnergy, TanEnergy) {
     double worst[3] = {0, 0, 0};
     for (std::uint32_t seed = 1; seed <= 6; ++seed) {
@@ -125,7 +125,7 @@ TEST_SUITE("models") {
                         worst[0], worst[1], worst[2]));
   }
 
-  TEST_CASE_TEMPLATE("bending paths: per-triangle gradient equals the per-hinge gradient (spec 01 §9 item 6)", Angle, ThetaEnergy,
+  TEST_CASE_TEMPLATE("bending paths: per-triangle gradient equals the per-hinge gradient (methods/shells §9 item 6)", Angle, ThetaEnergy,
                      TanEnergy) {
     for (std::uint32_t seed = 1; seed <= 4; ++seed) {
       CAPTURE(seed);
@@ -143,7 +143,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("bending paths: forward-mode AD of theta matches the closed forms of grad and Hess theta (spec 01 §9 item 4)") {
+  TEST_CASE("bending paths: forward-mode AD of theta matches the closed forms of grad and Hess theta (methods/shells §9 item 4)") {
     for (std::uint32_t seed = 70; seed < 76; ++seed) {
       CAPTURE(seed);
       support::Rng rng(seed);
@@ -161,7 +161,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("bending paths: the result does not depend on the global edge orientation (spec 01 §9 item 13)", Angle,
+  TEST_CASE_TEMPLATE("bending paths: the result does not depend on the global edge orientation (methods/shells §9 item 13)", Angle,
                      ThetaEnergy, TanEnergy) {
     const MeshData m = curved_grid(120, 7);
     const Scene scene = support::make_scene(m);
@@ -210,7 +210,7 @@ TEST_SUITE("models") {
                         model.num_hinges(), model.num_lone_triangles()));
   }
 
-  TEST_CASE("bending paths: one edge of the per-triangle terms is psi' times the half hinge (spec 01 §6.7)") {
+  TEST_CASE("bending paths: one edge of the per-triangle terms is psi' times the half hinge (methods/shells §6.7)") {
     support::Rng rng(80);
     for (int j = 0; j < 3; ++j) {
       CAPTURE(j);
@@ -241,7 +241,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("bending paths: boundary edges contribute nothing (spec 01 §9 item 15)", Angle, ThetaEnergy, TanEnergy) {
+  TEST_CASE_TEMPLATE("bending paths: boundary edges contribute nothing (methods/shells §9 item 15)", Angle, ThetaEnergy, TanEnergy) {
     // Cut a curved grid along the middle row of horizontal edges by giving the faces above
     // the cut their own copies of the cut vertices: the cut edges become boundary edges
     // (chi = 0) of the cut mesh. Its energy and derivatives, summed back onto the original
@@ -310,7 +310,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("bending paths: the projected Hessian is per hinge whatever the assembly parameter (spec 01 §6.12)", Angle,
+  TEST_CASE_TEMPLATE("bending paths: the projected Hessian is per hinge whatever the assembly parameter (methods/shells §6.12)", Angle,
                      ThetaEnergy, TanEnergy) {
     const MeshData m = curved_grid(140, 5);
     const Eigen::VectorXd x = deformed(m, 240, 0.3);

@@ -23,7 +23,7 @@ double theta_at(const Eigen::VectorXd& x) { return bending::hinge_angle(frames_a
 }  // namespace
 
 TEST_SUITE("models") {
-  TEST_CASE("hinge angle: known dihedral angles (spec 01 §9 item 24)") {
+  TEST_CASE("hinge angle: known dihedral angles (methods/shells §9 item 24)") {
     for (double phi : {0.3, 1.0, 2.5, -1.0, 1e-4}) {
       CAPTURE(phi);
       const auto f = frames_at(support::stack(support::known_hinge(phi).V));
@@ -35,7 +35,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("hinge angle: gradient and Hessian of theta match central differences (spec 01 §9 item 4)") {
+  TEST_CASE("hinge angle: gradient and Hessian of theta match central differences (methods/shells §9 item 4)") {
     std::uint32_t seed = 20;
     for (double phi : {-2.5, -1.0, 1e-4, 0.3, 1.0, 2.5}) {
       for (double wing : {-1.0, 1e-3}) {  // random shape, or a wing altitude 1e-3 of the hinge edge
@@ -56,7 +56,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("hinge angle: gradient structure (spec 01 §6.4)") {
+  TEST_CASE("hinge angle: gradient structure (methods/shells §6.4)") {
     for (std::uint32_t seed = 30; seed < 35; ++seed) {
       CAPTURE(seed);
       support::Rng rng(seed);
@@ -70,7 +70,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("hinge angle: Hess theta has 4 positive and 4 negative and 4 zero eigenvalues (spec 01 §9 item 16)") {
+  TEST_CASE("hinge angle: Hess theta has 4 positive and 4 negative and 4 zero eigenvalues (methods/shells §9 item 16)") {
     for (std::uint32_t seed = 40; seed < 50; ++seed) {
       support::Rng rng(seed);
       const double phi = rng.uniform(0.05, 2.5) * (seed % 2 ? 1 : -1);
@@ -86,7 +86,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("hinge angle: N0 + N0~ is symmetric and either transposition choice gives the same Hessian (spec 01 §9 items 13 and 14)") {
+  TEST_CASE("hinge angle: N0 + N0~ is symmetric and either transposition choice gives the same Hessian (methods/shells §9 items 13 and 14)") {
     for (std::uint32_t seed = 50; seed < 55; ++seed) {
       CAPTURE(seed);
       const auto f = frames_at(support::stack(support::random_hinge(seed, 0.2 * (seed - 52)).V));
@@ -131,7 +131,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("hinge angle: altitude-collapse sequence stays finite (spec 01 §9 item 28)") {
+  TEST_CASE("hinge angle: altitude-collapse sequence stays finite (methods/shells §9 item 28)") {
     for (int k = 1; k <= 8; ++k) {
       const double h0 = std::pow(10.0, -k);
       CAPTURE(h0);

@@ -30,7 +30,7 @@ Eigen::VectorXd positions(const MeshData& shape) { return support::stack(shape.V
 
 template <class Angle>
 std::vector<Config> derivative_configs() {
-  // The tan energy is checked for |theta| <= 2 (spec 01 §9 item 1), the theta energy up to 2.5.
+  // The tan energy is checked for |theta| <= 2 (methods/shells §9 item 1), the theta energy up to 2.5.
   const double big = Angle::requires_open_interval ? 2.0 : 2.5;
   std::vector<Config> c;
   for (std::uint32_t seed : {1u, 2u}) {
@@ -56,7 +56,7 @@ std::vector<Config> derivative_configs() {
   return c;
 }
 
-/// Spec 01 §9 items 10, 11: sum_i g_i = 0, sum_i x_i x g_i = 0, H (1 (x) t) = 0 and
+/// methods/shells §9 items 10, 11: sum_i g_i = 0, sum_i x_i x g_i = 0, H (1 (x) t) = 0 and
 /// H (w x x_i)_i = (w x g_i)_i.
 void check_balance(const Eigen::VectorXd& x, const Eigen::VectorXd& g, const Eigen::MatrixXd& H) {
   const Eigen::Index n = x.size() / 3;
@@ -111,7 +111,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: energy of known dihedral angles (spec 01 §9 item 24)", Angle, ThetaEnergy, TanEnergy) {
+  TEST_CASE_TEMPLATE("hinge_bending: energy of known dihedral angles (methods/shells §9 item 24)", Angle, ThetaEnergy, TanEnergy) {
     ShellMaterial mat = support::unit_material();
     mat.bending_stiffness = 0.7;
     const double k = 0.7;
@@ -151,7 +151,7 @@ TEST_SUITE("models") {
     CHECK(model.hinge(0).kappa == doctest::Approx(k * 3 * 1.5 * 1.5 / (area_T + area_Tt)).epsilon(1e-14));
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: zero energy and gradient at rest and at a rigidly moved rest state (spec 01 §9 item 8)", Angle,
+  TEST_CASE_TEMPLATE("hinge_bending: zero energy and gradient at rest and at a rigidly moved rest state (methods/shells §9 item 8)", Angle,
                      ThetaEnergy, TanEnergy) {
     for (bool curved : {false, true}) {
       CAPTURE(curved);
@@ -171,7 +171,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: energy and forces and Hessian are invariant under rigid motions (spec 01 §9 item 9)", Angle, ThetaEnergy,
+  TEST_CASE_TEMPLATE("hinge_bending: energy and forces and Hessian are invariant under rigid motions (methods/shells §9 item 9)", Angle, ThetaEnergy,
                      TanEnergy) {
     const MeshData m = support::random_patch(24, /*curved=*/true);
     auto p = support::make_patch<HingeBending<Angle>>(m, support::perturb(positions(m), 0.2, 25));
@@ -190,7 +190,7 @@ TEST_SUITE("models") {
     CHECK(support::relative_error(Q * H * Q.transpose(), support::dense_hessian(p.model, moved, HessianMode::exact)) <= 1e-12);
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: forces and torques balance and H annihilates rigid motions (spec 01 §9 items 10 and 11)",
+  TEST_CASE_TEMPLATE("hinge_bending: forces and torques balance and H annihilates rigid motions (methods/shells §9 items 10 and 11)",
                      Angle, ThetaEnergy, TanEnergy) {
     for (const auto& c : derivative_configs<Angle>()) {
       CAPTURE(c.name);
@@ -201,7 +201,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: assembled Hessian is symmetric (spec 01 §9 item 12)", Angle, ThetaEnergy, TanEnergy) {
+  TEST_CASE_TEMPLATE("hinge_bending: assembled Hessian is symmetric (methods/shells §9 item 12)", Angle, ThetaEnergy, TanEnergy) {
     const MeshData m = support::random_patch(27, /*curved=*/true);
     auto p = support::make_patch<HingeBending<Angle>>(m, support::perturb(positions(m), 0.2, 28));
     for (HessianMode mode : {HessianMode::exact, HessianMode::projected}) {
@@ -276,7 +276,7 @@ TEST_SUITE("models") {
     CHECK((bending::project_psd(R) - reference(R)).norm() > 1e-3 * max_abs_eigenvalue(R));
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: a flat mesh under an in-plane affine map has zero energy (spec 01 §9 item 27)", Angle,
+  TEST_CASE_TEMPLATE("hinge_bending: a flat mesh under an in-plane affine map has zero energy (methods/shells §9 item 27)", Angle,
                      ThetaEnergy, TanEnergy) {
     const MeshData m = support::random_patch(31, /*curved=*/false);
     Eigen::Matrix3d A;
@@ -293,7 +293,7 @@ TEST_SUITE("models") {
     CHECK(std::abs(p.model.energy(p.state)) <= 1e-28);
   }
 
-  TEST_CASE_TEMPLATE("hinge_bending: collapsed altitudes and edges are inadmissible and never NaN (spec 01 §9 item 28)", Angle, ThetaEnergy,
+  TEST_CASE_TEMPLATE("hinge_bending: collapsed altitudes and edges are inadmissible and never NaN (methods/shells §9 item 28)", Angle, ThetaEnergy,
                      TanEnergy) {
     const MeshData rest = support::known_hinge(0.3);
     const Scene scene = support::make_scene(rest);
@@ -343,7 +343,7 @@ TEST_SUITE("models") {
     CHECK_FALSE(std::isnan(model.energy(s)));
   }
 
-  TEST_CASE("hinge_bending: the tan energy rejects hinges folded onto themselves (spec 01 §9 item 30)") {
+  TEST_CASE("hinge_bending: the tan energy rejects hinges folded onto themselves (methods/shells §9 item 30)") {
     const Scene scene = support::make_scene(support::known_hinge(0.0));
     const HingeBending<TanEnergy> tan_model(scene, {});
     const HingeBending<ThetaEnergy> theta_model(scene, {});

@@ -68,7 +68,7 @@ std::vector<Config> derivative_configs() {
   return c;
 }
 
-/// Reference energy via the deformation gradient (spec 01 §4.1): W = Abar h psi(E).
+/// Reference energy via the deformation gradient (methods/shells §4.1): W = Abar h psi(E).
 double reference_energy(const Eigen::Matrix3d& rest, const Eigen::Matrix3d& x, double Y, double nu, double h) {
   const Eigen::Vector3d r1 = rest.row(1) - rest.row(0), r2 = rest.row(2) - rest.row(0);
   const Eigen::Vector3d n = r1.cross(r2).normalized(), t1 = r1.normalized(), t2 = n.cross(t1);
@@ -102,7 +102,7 @@ double max_abs_eigenvalue(const Eigen::MatrixXd& H) {
 }  // namespace
 
 TEST_SUITE("models") {
-  TEST_CASE("stvk_membrane: golden values of spec 01 §9 item 7") {
+  TEST_CASE("stvk_membrane: golden values of methods/shells §9 item 7") {
     const MeshData m = unit_right_triangle();
     auto p = support::make_patch<Membrane>(m, Eigen::VectorXd::Zero(9));
     p.state.x << 0, 0, 0, 1.1, 0, 0, 0.2, 0.9, 0.3;
@@ -115,7 +115,7 @@ TEST_SUITE("models") {
   }
 
   TEST_CASE("stvk_membrane: T from (lambda mu a b) reproduces the orthotropic golden values") {
-    // The runtime kernel is material-independent; only T changes (spec 01 §4.4). Check the
+    // The runtime kernel is material-independent; only T changes (methods/shells §4.4). Check the
     // orthotropic terms T3, T4 of the precompute with the golden values of §9 item 7.
     Eigen::Matrix3d rest, x;
     rest << 0, 0, 0, 1, 0, 0, 0, 1, 0;
@@ -181,7 +181,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("stvk_membrane: zero energy and gradient at rest and at a rigidly moved rest state (spec 01 §9 item 8)", Model,
+  TEST_CASE_TEMPLATE("stvk_membrane: zero energy and gradient at rest and at a rigidly moved rest state (methods/shells §9 item 8)", Model,
                      StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(7, /*curved=*/true);
     const Eigen::VectorXd rest = support::stack(m.V);
@@ -198,7 +198,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("stvk_membrane: energy and forces and Hessian are invariant under rigid motions (spec 01 §9 item 9)", Model,
+  TEST_CASE_TEMPLATE("stvk_membrane: energy and forces and Hessian are invariant under rigid motions (methods/shells §9 item 9)", Model,
                      StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     const MeshData m = support::random_patch(9, /*curved=*/true);
     auto p = patch_for<Model>(m, support::perturb(support::stack(m.V), 0.2, 10), 90);
@@ -218,7 +218,7 @@ TEST_SUITE("models") {
     CHECK(support::relative_error(Q * H * Q.transpose(), support::dense_hessian(p.model, moved, HessianMode::exact)) <= 1e-12);
   }
 
-  TEST_CASE_TEMPLATE("stvk_membrane: forces and torques balance and H annihilates rigid motions (spec 01 §9 items 10 and 11)", Model,
+  TEST_CASE_TEMPLATE("stvk_membrane: forces and torques balance and H annihilates rigid motions (methods/shells §9 items 10 and 11)", Model,
                      StvkMembrane<Isotropic>, StvkMembrane<Orthotropic>) {
     for (const auto& c : derivative_configs()) {
       CAPTURE(c.name);
@@ -259,7 +259,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane: exact uniaxial stretch (spec 01 §9 item 22)") {
+  TEST_CASE("stvk_membrane: exact uniaxial stretch (methods/shells §9 item 22)") {
     const double L = 2.0, Bw = 1.0, s = 1.3;
     ShellMaterial mat = support::unit_material();
     mat.youngs_modulus = 3.0;

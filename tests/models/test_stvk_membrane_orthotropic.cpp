@@ -1,4 +1,4 @@
-// StvkMembrane<Orthotropic> (spec 01 §3.2, §4.3-4.4; checklist §9 items 1-3, 7, 17-20, 22, 23).
+// StvkMembrane<Orthotropic> (methods/shells §3.2, §4.3-4.4; checklist §9 items 1-3, 7, 17-20, 22, 23).
 #include <doctest/doctest.h>
 
 #include <Eigen/Eigenvalues>
@@ -87,7 +87,7 @@ struct Frame {
   Eigen::Vector2d coords(const Eigen::Vector3d& v) const { return {t1.dot(v), t2.dot(v)}; }
 };
 
-/// Green strain of a CST via its deformation gradient (spec 01 §4.1), in the rest frame.
+/// Green strain of a CST via its deformation gradient (methods/shells §4.1), in the rest frame.
 Eigen::Matrix2d green_strain(const Eigen::Matrix3d& rest, const Eigen::Matrix3d& x) {
   const Frame fr(rest);
   const Eigen::Vector3d r1 = rest.row(1) - rest.row(0), r2 = rest.row(2) - rest.row(0);
@@ -100,7 +100,7 @@ Eigen::Matrix2d green_strain(const Eigen::Matrix3d& rest, const Eigen::Matrix3d&
   return 0.5 * (F.transpose() * F - Eigen::Matrix2d::Identity());
 }
 
-/// Başar's density (spec 01 §3.3, Eq. 4.5) straight from the engineering constants, in the
+/// Başar's density (methods/shells §3.3, Eq. 4.5) straight from the engineering constants, in the
 /// material frame (warp, weft): L_warp, L_weft normal strains, L3 = E_{warp,weft}^2;
 ///   psi = 1/2 a_weft L_weft^2 + 1/2 a_warp L_warp^2 + a12 L_warp L_weft + G L3,
 ///   a_weft = eta Y / q, a_warp = Y / q, a12 = eta nu Y / q, q = 1 - eta nu^2, G = 2 G12.
@@ -112,7 +112,7 @@ double basar_psi(const Eigen::Matrix2d& E, const Eigen::Vector2d& warp, double y
   return 0.5 * eta * Y / q * Lweft * Lweft + 0.5 * Y / q * Lwarp * Lwarp + eta * nu * Y / q * Lwarp * Lweft + 2 * g12 * Lshear * Lshear;
 }
 
-/// The (lambda, mu, a, b) density with ahat = the weft (spec 01 §3.2).
+/// The (lambda, mu, a, b) density with ahat = the weft (methods/shells §3.2).
 double lame_psi(const Eigen::Matrix2d& E, const Eigen::Vector2d& weft, const membrane::LameConstants& c) {
   const Eigen::Vector2d a = weft.normalized();
   const double J1 = E.trace(), J2 = (E * E).trace(), J3 = a.dot(E * a);
@@ -170,7 +170,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("stvk_membrane: Taylor remainders shrink 4x and 8x per halving (spec 01 §9 item 3)", Model, Iso, Ortho) {
+  TEST_CASE_TEMPLATE("stvk_membrane: Taylor remainders shrink 4x and 8x per halving (methods/shells §9 item 3)", Model, Iso, Ortho) {
     std::uint32_t seed = 500;
     for (const auto& c : derivative_configs()) {
       if (!c.well_shaped) continue;
@@ -205,7 +205,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane orthotropic: golden values of spec 01 §9 item 7 through the full model") {
+  TEST_CASE("stvk_membrane orthotropic: golden values of methods/shells §9 item 7 through the full model") {
     // ahat = (0, 1, 0) is the weft in the project convention, so the warp is (1, 0, 0):
     // Y = Y_warp = 1, eta = 0.5 -> Y_weft = 0.5, nu = 0.3, G = 0.4 -> G12 = 0.2, h = 1.
     const ShellMaterial mat = support::orthotropic_material(1.0, 0.5, 0.2, 0.3);
@@ -228,7 +228,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane orthotropic: edge-based energy equals the F-based Basar reference (spec 01 §9 items 7 and 19)") {
+  TEST_CASE("stvk_membrane orthotropic: edge-based energy equals the F-based Basar reference (methods/shells §9 items 7 and 19)") {
     for (std::uint32_t seed = 1; seed <= 8; ++seed) {
       CAPTURE(seed);
       support::Rng rng(600 + seed);
@@ -258,7 +258,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane orthotropic: Basar form equals the (lambda mu a b) form for random strains (spec 01 §9 item 19)") {
+  TEST_CASE("stvk_membrane orthotropic: Basar form equals the (lambda mu a b) form for random strains (methods/shells §9 item 19)") {
     support::Rng rng(900);
     for (int k = 0; k < 50; ++k) {
       const double yw = rng.uniform(0.1, 10), yf = rng.uniform(0.1, 10), g12 = rng.uniform(0.01, 5);
@@ -276,7 +276,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane orthotropic: eta = 1 and G = Y/(1+nu) reduce to the isotropic T for any direction (spec 01 §9 item 17)") {
+  TEST_CASE("stvk_membrane orthotropic: eta = 1 and G = Y/(1+nu) reduce to the isotropic T for any direction (methods/shells §9 item 17)") {
     for (std::uint32_t seed = 1; seed <= 5; ++seed) {
       CAPTURE(seed);
       support::Rng rng(1000 + seed);
@@ -336,7 +336,7 @@ TEST_SUITE("models") {
     CHECK((membrane::stvk_T(rest, 1.0, c, -ahat) - T).norm() <= 1e-14 * T.norm());
   }
 
-  TEST_CASE("stvk_membrane orthotropic: engineering constants recovered along and across ahat and off axis (spec 01 §9 item 18)") {
+  TEST_CASE("stvk_membrane orthotropic: engineering constants recovered along and across ahat and off axis (methods/shells §9 item 18)") {
     // Probe psi(E) = W / (Abar h) through the full model with deformations that realise a
     // given Green strain exactly (in the warp/weft frame), so the stiffness is exact (StVK is
     // quadratic in E; no small-strain truncation), then invert it.
@@ -391,14 +391,14 @@ TEST_SUITE("models") {
       const double wu = 1.0 / (std::pow(c, 4) / yw + (1.0 / g12 - 2 * nu / yw) * c * c * s * s + std::pow(s, 4) / yf);
       CHECK(Y_phi == doctest::Approx(wu).epsilon(1e-10));
     }
-    // The thesis' print with 1/G instead of 1/G12 is off for 0 < phi < pi/2 (spec 01 §3.2).
+    // The thesis' print with 1/G instead of 1/G12 is off for 0 < phi < pi/2 (methods/shells §3.2).
     const double c = std::cos(0.5), s = std::sin(0.5);
     const Eigen::Vector3d E = D * Eigen::Vector3d(c * c, s * s, c * s);
     const double thesis = 1.0 / (std::pow(c, 4) / yw + (1.0 / (2 * g12) - 2 * nu / yw) * c * c * s * s + std::pow(s, 4) / yf);
     CHECK(std::abs(1.0 / (c * c * E[0] + s * s * E[1] + 2 * c * s * E[2]) - thesis) > 1e-3 * thesis);
   }
 
-  TEST_CASE("stvk_membrane orthotropic: exact uniaxial stretch along and across ahat (spec 01 §9 item 22)") {
+  TEST_CASE("stvk_membrane orthotropic: exact uniaxial stretch along and across ahat (methods/shells §9 item 22)") {
     const double L = 2.0, Bw = 1.0, s = 1.3, yw = 3.0, yf = 1.2, g12 = 0.4, nu = 0.35, h = 0.2;
     const ShellMaterial mat = support::orthotropic_material(yw, yf, g12, nu, h);
     const MeshData m = support::grid(5, 3, L, Bw);
@@ -417,7 +417,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE_TEMPLATE("stvk_membrane: compression instability at s = 1/sqrt(3) for nu = 0 (spec 01 §9 item 23)", Model, Iso, Ortho) {
+  TEST_CASE_TEMPLATE("stvk_membrane: compression instability at s = 1/sqrt(3) for nu = 0 (methods/shells §9 item 23)", Model, Iso, Ortho) {
     // d^2W/ds^2 = D^T H D for x(s) = (s X, Y): A h Y / 2 (3 s^2 - 1) (nu = 0: no lateral strain).
     const MeshData m = support::triangle({0, 0, 0}, {1, 0, 0}, {0.3, 0.8, 0});
     ShellMaterial iso = support::unit_material();
@@ -449,7 +449,7 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("stvk_membrane orthotropic: stability validation rejects each violated inequality (spec 01 §9 item 20)") {
+  TEST_CASE("stvk_membrane orthotropic: stability validation rejects each violated inequality (methods/shells §9 item 20)") {
     const MeshData m = support::triangle({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
     const std::vector<Eigen::Vector3d> warp = {Eigen::Vector3d(1, 0, 0)};
     auto error_of = [&](const ShellMaterial& mat) -> std::string {

@@ -1,4 +1,4 @@
-// Animated rest state of StvkMembrane (spec 01 §5): rest lengths lbar_e (1 - w + w s(t)).
+// Animated rest state of StvkMembrane (methods/shells §5): rest lengths lbar_e (1 - w + w s(t)).
 #include <doctest/doctest.h>
 
 #include <Eigen/Cholesky>

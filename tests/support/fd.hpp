@@ -1,6 +1,6 @@
 #pragma once
 /// \file fd.hpp
-/// Central finite differences for derivative checks (spec 01 §9): energy -> gradient and
+/// Central finite differences for derivative checks (methods/shells §9): energy -> gradient and
 /// gradient -> Hessian, with step h = 1e-6 times the mean rest edge length; plus helpers that
 /// evaluate a model's analytic gradient and assembled Hessian.
 ///
@@ -29,7 +29,7 @@ inline double mean_edge_length(const TriangleMesh& mesh) {
   return mesh.num_edges() > 0 ? sum / mesh.num_edges() : 1.0;
 }
 
-/// The finite-difference step of spec 01 §9: 1e-6 times the mean rest edge length.
+/// The finite-difference step of methods/shells §9: 1e-6 times the mean rest edge length.
 inline double fd_step(const TriangleMesh& mesh) { return 1e-6 * mean_edge_length(mesh); }
 
 /// Fourth-order central difference of f along coordinate j of x, step h.
@@ -135,7 +135,7 @@ Eigen::MatrixXd dense_hessian(Model& m, const State& s, HessianMode mode) {
   return assembled_hessian(m, s, mode).to_dense();
 }
 
-/// ||a - b|| / max(1, ||a||): the spec 01 §9 measure.
+/// ||a - b|| / max(1, ||a||): the methods/shells §9 measure.
 inline double spec_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return (a - b).norm() / std::max(1.0, a.norm());
 }

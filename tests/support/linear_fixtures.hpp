@@ -142,7 +142,7 @@ inline ConstraintSet with_contacts(const ConstraintSet& base, std::uint32_t seed
 }
 
 /// Ground truth for constrained solves: the dense KKT system [[A C^T][C 0]] [x; lambda] =
-/// [b; C z] (spec 04 §7.1), rows of C the constrained directions n_{i,m}^T, by full-pivot LU.
+/// [b; C z] (methods/multigrid §7.1), rows of C the constrained directions n_{i,m}^T, by full-pivot LU.
 inline Eigen::VectorXd dense_kkt_solve(const BlockCsr& A, const Eigen::VectorXd& b, const ConstraintSet& c) {
   const int n = A.rows();
   int m = 0;

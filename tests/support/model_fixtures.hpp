@@ -198,7 +198,7 @@ inline MeshData triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, con
   return m;
 }
 
-/// Two triangles T = (x0, x1, x2), T~ = (x3, x2, x1) sharing the hinge x1 -> x2 (spec 01 §6.1).
+/// Two triangles T = (x0, x1, x2), T~ = (x3, x2, x1) sharing the hinge x1 -> x2 (methods/shells §6.1).
 inline MeshData hinge(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1, const Eigen::Vector3d& x2,
                       const Eigen::Vector3d& x3) {
   MeshData m;
@@ -209,7 +209,7 @@ inline MeshData hinge(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1, cons
   return m;
 }
 
-/// The hinge of spec 01 §6.1 / §9 item 24: x0 = (1/2, 1, 0), x1 = 0, x2 = (1, 0, 0),
+/// The hinge of methods/shells §6.1 / §9 item 24: x0 = (1/2, 1, 0), x1 = 0, x2 = (1, 0, 0),
 /// x3 = (1/2, -cos phi, -sin phi); theta = +phi, unit hinge edge, total area 1.
 inline MeshData known_hinge(double phi) {
   return hinge({0.5, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0.5, -std::cos(phi), -std::sin(phi)});

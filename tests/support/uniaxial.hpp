@@ -1,5 +1,5 @@
 #pragma once
-// The exact uniaxial-stretch check of spec 01 §9 item 22, shared by the isotropic and
+// The exact uniaxial-stretch check of methods/shells §9 item 22, shared by the isotropic and
 // orthotropic membrane tests.
 #include <doctest/doctest.h>
 
