@@ -1,6 +1,6 @@
 #pragma once
 /// \file bench_contact.hpp
-/// `weft bench contact`: where the time of a cloth-contact step goes (issue 6, performance).
+/// `weft bench contact`: where the time of a cloth-contact step goes.
 /// Runs one scene under its (or a given) combination at several resolutions for a window of
 /// steps and reports, per resolution: vertices, seconds per step, the shares of the step's
 /// wall time spent in contact detection (ContactReport::detection_seconds: BVH refits,

@@ -1,7 +1,7 @@
 // methods/integration-and-contact E2 / thesis §6.5: the folded hinge, one step at dt = 1/240, 5/240, 10/240 s,
 // solved to a relative residual of 1e-10 by root finding and by incremental-potential
 // minimisation with each globalisation. Prints iterations side by side with the thesis and
-// the spec's independent reference, and writes every convergence history as JSON lines.
+// an independent high-precision reference (methods/integration-and-contact §16, E2), and writes every convergence history as JSON lines.
 //   bench_hinge [scenes/hinge.json] [histories.jsonl]
 #include <fmt/format.h>
 

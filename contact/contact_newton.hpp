@@ -1,7 +1,7 @@
 #pragma once
 /// \file contact_newton.hpp
 /// A convergent solver of the multi-contact Coulomb problem: semismooth Newton on the
-/// contacts' Fischer-Burmeister system (issue 7, the fix the thesis proposes in §14.4 for
+/// contacts' Fischer-Burmeister system (the fix the thesis proposes in §14.4 for
 /// the Gauss-Seidel that does not converge). Shared by the rods (rod_group_solver.hpp, a
 /// block-sparse W per contact group) and the cloth's linear compliance
 /// (linear_compliance.hpp, W dense).

@@ -16,7 +16,7 @@
 /// through K^-1, scale-free and insensitive to the conditioning of K (|f| itself is reported
 /// as well). It fails after `max_iterations`, or when the line search cannot decrease E_inc.
 ///
-/// Large steps (issue 7). A hair is nearly inextensible (h^2 k_stretch / m ~ 1e7 at 30 ms),
+/// Large steps. A hair is nearly inextensible (h^2 k_stretch / m ~ 1e7 at 30 ms),
 /// so at large h the minimiser is reached by rotating edges through large angles. A Newton
 /// step moves vertices along straight lines: rotating an edge of length l by phi that way
 /// stretches it by l phi^2 / 2, which the stiff stretching energy punishes, so Armijo cut

@@ -50,7 +50,7 @@ struct LameConstants {
 ///   lambda = Y nu / (1 - nu^2), mu = Y / (2 (1 + nu)), a = b = 0.
 LameConstants isotropic_lame(double youngs_modulus, double poisson_ratio);
 
-/// Orthotropic constants (methods/shells Eq. 4.4) in the spec's symbols, x = ahat_perp, y = ahat:
+/// Orthotropic constants (methods/shells Eq. 4.4) in the symbols of methods/shells §3.2, x = ahat_perp, y = ahat:
 ///   lambda = Y / (1 - eta nu^2) - G,           mu = G / 2,
 ///   a = (eta nu - 1) / (1 - eta nu^2) Y + G,   b = (1 + eta - 2 eta nu) / (2 (1 - eta nu^2)) Y - G,
 /// \param Y Young's modulus along x [Pa]  \param eta Y_y / Y_x  \param nu nu_xy

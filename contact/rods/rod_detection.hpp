@@ -28,7 +28,7 @@
 /// that vertex both lie a hair's breadth from it: the same crossing is found twice, with
 /// normals a fraction of a degree apart. Two such constraints are redundant: the Delassus
 /// operator is singular on them, the multipliers are not unique (any split of the load),
-/// and a convergent contact solve stalls (issue 7). So two rod-rod contacts of the same
+/// and a convergent contact solve stalls. So two rod-rod contacts of the same
 /// pair of rods whose edges are the same or adjacent on both rods are merged when their
 /// contact points, as material points at the start of the step (the times of impact of
 /// the two may differ: one found by proximity, the other by CCD), lie within

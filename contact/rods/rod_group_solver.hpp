@@ -3,7 +3,7 @@
 /// The contact problem of one rod contact group and its two solvers (methods/rod-contact §9, §10.3):
 /// Gauss-Seidel over the contacts with the exact single-contact solver (the thesis), and a
 /// convergent alternative, a semismooth Newton method on the group's Fischer-Burmeister
-/// system (issue 7, the fix the thesis proposes in §14.4).
+/// system (the fix the thesis proposes in §14.4).
 ///
 /// Problem. Contact k of the group has the local displacement u_k = G_k^T x + b_k, x the
 /// displacements of the group's rods, and x = d_u + sum_l P_l lambda_l (P_l = D G_l, on

@@ -1,4 +1,4 @@
-// `weft ablate` (issue 8): the reference has zero error against itself; halving dt and
+// `weft ablate`: the reference has zero error against itself; halving dt and
 // tightening a tolerance do not increase the error; the CSV has one row per combination;
 // plots are written when matplotlib is there and skipped with a message when it is not; a
 // simulator without contact spends no time in contact code; bad input is refused before any run;

@@ -1,4 +1,4 @@
-// `weft ablate` on rods (issue 8): the ablation driver of tests/apps/test_ablate.cpp, on a
+// `weft ablate` on rods: the ablation driver of tests/apps/test_ablate.cpp, on a
 // rod scene with contact instead of cloth. The rod pile of scenes/rod_pile.json reduced to one
 // rod per layer at 8 vertices, 0.06 s (3 frames at 50 frames/s, 30 steps at 2 ms): the lowest
 // layer lands on the ground plane at about 45 ms, so every run has contacts.

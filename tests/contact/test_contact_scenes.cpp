@@ -1,11 +1,11 @@
-// The cloth-contact scenes of issue 6 (scenes/drape_sphere.json, drop_horizontal.json,
+// The cloth-contact scenes (scenes/drape_sphere.json, drop_horizontal.json,
 // drop_vertical.json, stacked_sheets.json, twisted_sheet.json, incline_sheet.json), run from
 // the shipped files with overrides that make them small and short. After every step: the
 // step succeeded, no NaN, no cloth-cloth intersection (exact check of contact/verify,
 // independent of the detection code) and no free vertex closer to an obstacle than the
 // contact thickness h (1 - 1e-9), measured with signed distances written here, independent
 // of contact/. Each scene also shows its physical outcome. The "slow" suite runs the twisted
-// sheet and dropVertical to the end (issue 6 guarantee) and the drape at several of its 36
+// sheet and dropVertical to the end (the contact guarantee) and the drape at several of its 36
 // resolutions.
 #include <doctest/doctest.h>
 

@@ -1,4 +1,4 @@
-// Triangle-mesh obstacles read from OBJ (issue 6): the signed distance of a cube mesh equals
+// Triangle-mesh obstacles read from OBJ: the signed distance of a cube mesh equals
 // the analytic box's (posed by scale, center and motion), a sphere tessellation is within its
 // chordal error of the sphere, the derivatives match finite differences in face, edge and
 // vertex regions (convex and reflex), the BVH finds the brute-force closest point, malformed

@@ -1,4 +1,4 @@
-// The convergent contact solver of the rod strategies (issue 7: `contact.solver = newton`,
+// The convergent contact solver of the rod strategies (`contact.solver = newton`,
 // contact/rods/rod_group_solver.hpp) and the contact laws at convergence (methods/rod-contact §15):
 // V-05 (the stick case plain Gauss-Seidel cannot finish), V-06 Signorini, V-07 Coulomb,
 // V-12 staggered projections and ADONIS reach the same fixed point, V-13 ordering
@@ -664,11 +664,11 @@ void compare_lock(double duration, int from) {
 }
 
 TEST_SUITE("rods") {
-  TEST_CASE("rod contact solver: issue 7 the twisted lock unwinds under capped Gauss-Seidel and holds with Newton") {
+  TEST_CASE("rod contact solver: the twisted lock unwinds under capped Gauss-Seidel and holds with Newton") {
     compare_lock(0.06, 10);
   }
 }
 
 TEST_SUITE("slow") {
-  TEST_CASE("rod contact solver: issue 7 the twisted lock over 0.2 s") { compare_lock(0.2, 10); }
+  TEST_CASE("rod contact solver: the twisted lock over 0.2 s") { compare_lock(0.2, 10); }
 }

@@ -1,5 +1,5 @@
 // The unconstrained rod step (integrators/rod_backward_euler.hpp) at large time steps
-// (issue 7): a clamped hair whose root turns fast converges, and did not with the straight
+// a clamped hair whose root turns fast converges, and did not with the straight
 // line search from the constant-velocity guess; the converged step is a minimiser of E_inc
 // with a small DEL residual; one huge step reaches the static equilibrium whatever its size;
 // the arc path of the line search is tangent to the Newton direction and keeps edge lengths
@@ -64,7 +64,7 @@ NewtonReport step(Body& b, const RodBackwardEuler& integ, double h) {
   return r;
 }
 
-/// The integrator as it was before issue 7: straight line search from the guess d = h v.
+/// The integrator as it was before the large-step safeguards: straight line search from the guess d = h v.
 RodBackwardEuler legacy(int max_iterations = 50) {
   return RodBackwardEuler({.max_iterations = max_iterations, .arc_step = false, .follow_the_leader = false});
 }
@@ -74,7 +74,7 @@ double edge_length(const Eigen::VectorXd& q, int j) { return (q.segment<3>(4 * j
 }  // namespace
 
 TEST_SUITE("integrators") {
-  TEST_CASE("issue 7: a clamped rod whose root turns 2 rad in one 100 ms step converges") {
+  TEST_CASE("rod backward Euler: a clamped rod whose root turns 2 rad in one 100 ms step converges") {
     const RodBackwardEuler integ({});
     Body b = whip();
     const Eigen::VectorXd rest = b.q;
@@ -99,7 +99,7 @@ TEST_SUITE("integrators") {
     CHECK(step(arc, RodBackwardEuler({.follow_the_leader = false}), 0.1).status == Status::success);
   }
 
-  TEST_CASE("issue 7: the whip at 20 rad/s with 30 ms steps converges every step") {
+  TEST_CASE("rod backward Euler: the whip at 20 rad/s with 30 ms steps converges every step") {
     const RodBackwardEuler integ({});
     Body b = whip(), old = whip();
     const Eigen::VectorXd rest = b.q;
@@ -115,7 +115,7 @@ TEST_SUITE("integrators") {
     }
     MESSAGE("largest Newton iteration count over 10 steps: " << worst << "; the legacy solver failed at step " << old_failure);
     CHECK(worst <= 12);         // 8 when written
-    CHECK(old_failure == 5);    // "fails at step 5", as issue 7 reported on the whip scene
+    CHECK(old_failure == 5);    // "fails at step 5", as the straight search did on the whip scene
   }
 
   TEST_CASE("rod backward Euler: the converged step is a minimiser of E_inc with a small DEL residual") {

@@ -1,4 +1,4 @@
-// Memory of the prefiltered solvers (issue 5, target "memory of SA+PPCG at most 1.5x that of
+// Memory of the prefiltered solvers (target "memory of SA+PPCG at most 1.5x that of
 // Diag-PCG"): the prefiltered operator applied on the fly, the one-triangle coarse operators
 // and the memory SA+PPCG owns against the matrix it is given.
 #include <doctest/doctest.h>

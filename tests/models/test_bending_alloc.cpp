@@ -1,5 +1,5 @@
 // The bending evaluations allocate nothing on the heap once the model and its buffers
-// exist (issue 3: "no heap allocation inside element kernels"). malloc and friends are
+// exist ("no heap allocation inside element kernels"). malloc and friends are
 // interposed for the whole test_models executable; they only count while `counting` is set.
 #include <doctest/doctest.h>
 

@@ -1,4 +1,4 @@
-// The custom energy of examples/custom_energy (edge springs, issue 8's teaching tour) is
+// The custom energy of examples/custom_energy (edge springs, the teaching tour's example) is
 // held to the library's own standard: gradient and Hessian against finite differences, on
 // a random configuration and on compressed and inverted ones, exact and projected.
 #include <doctest/doctest.h>
