@@ -20,6 +20,7 @@
 #endif
 
 #include "apps/bench_common.hpp"
+#include "framework/build_info.hpp"
 #include "apps/runner.hpp"
 #include "framework/params_json.hpp"
 #include "framework/scene.hpp"
@@ -245,10 +246,10 @@ Resolution run_resolution(int n, const std::string& scene_path, const std::vecto
 
 int bench_bending(const BenchBendingOptions& opt_in) {
   BenchBendingOptions opt = opt_in;
-  const std::string source_dir = app::source_dir();
-  if (opt.scene.empty()) opt.scene = (fs::path(source_dir) / "scenes" / "hanging_cloth.json").string();
+  const std::string data = app::data_dir();
+  if (opt.scene.empty()) opt.scene = (fs::path(data) / "scenes" / "hanging_cloth.json").string();
   if (!fs::exists(opt.scene)) {
-    fmt::print(stderr, "error: scene {} not found: pass --scene path/to/scenes/hanging_cloth.json (or set WEFT_SOURCE_DIR)\n",
+    fmt::print(stderr, "error: scene {} not found: pass --scene path/to/scenes/hanging_cloth.json (or set WEFT_DATA_DIR)\n",
                opt.scene);
     return exit_config;
   }
@@ -324,7 +325,7 @@ int bench_bending(const BenchBendingOptions& opt_in) {
       for (int p = 0; p < 3; ++p) all_ulps[p].push_back(u[p]);
 
   // ---- Markdown report ----
-  const std::string cpu = cpu_model(), git = git_describe(source_dir);
+  const std::string cpu = cpu_model(), git = build_commit();
   std::string md;
   auto w = [&md](const std::string& s) { md += s; };
   w("# weft bench bending: thesis Tables 5.1 and 5.2 (methods/shells §8)\n\n");

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <string_view>
 #include <thread>
@@ -15,18 +16,18 @@
 #include "framework/build_info.hpp"
 #include "linear/lapack_info.hpp"
 
-#ifndef WEFT_SOURCE_DIR
-#define WEFT_SOURCE_DIR ""
-#endif
 #ifndef WEFT_CXX_FLAGS
 #define WEFT_CXX_FLAGS "unknown"
 #endif
 
 namespace weft::app {
 
-std::string source_dir() {
-  const char* env = std::getenv("WEFT_SOURCE_DIR");
-  return env ? env : WEFT_SOURCE_DIR;
+std::string data_dir() {
+  if (const char* env = std::getenv("WEFT_DATA_DIR"); env && *env) return env;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return "share/weft";
+  return (exe.parent_path().parent_path() / "share" / "weft").string();
 }
 
 const char* build_flags() { return WEFT_CXX_FLAGS; }
@@ -50,18 +51,6 @@ std::string cpu_model() {
       if (p != std::string::npos) return line.substr(p + 2);
     }
   return "unknown";
-}
-
-std::string git_describe(const std::string& source_dir) {
-  if (source_dir.empty()) return "unknown";
-  const std::string cmd = "git -C '" + source_dir + "' describe --always --dirty 2>/dev/null";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return "unknown";
-  char buf[128] = {0};
-  std::string out = fgets(buf, sizeof buf, p) ? buf : "";
-  pclose(p);
-  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
-  return out.empty() ? "unknown" : out;
 }
 
 Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads) {
@@ -111,18 +100,30 @@ bool opted_out() {
 
 }  // namespace
 
-void reexec_with_huge_pages(char** argv) {
-  if (tunable_set() || opted_out() || thp_mode() != "madvise") return;
+void reexec_with_environment(char** argv) {
+  // Worker threads that wait passively (OMP_WAIT_POLICY, read by the OpenMP runtime when it
+  // loads, hence the re-execution): spinning threads take the core from other work on a shared
+  // machine and slowed a 960-step demo from 15 s to 24 s. The user's own setting is kept.
+  const bool wait_policy = std::getenv("OMP_WAIT_POLICY") == nullptr;
+  const bool huge = !tunable_set() && !opted_out() && thp_mode() == "madvise";
+  if (!wait_policy && !huge) return;
   const char* old = std::getenv("GLIBC_TUNABLES");
-  std::string value = old && *old ? std::string(old) + ":" : std::string();
-  value += hugetlb_tunable;
-  if (setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
+  const std::string old_tunables = old ? old : "";
+  if (huge) {
+    std::string value = old && *old ? old_tunables + ":" : std::string();
+    value += hugetlb_tunable;
+    if (setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
+  }
+  if (wait_policy) setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
   execv("/proc/self/exe", argv);
-  // Not re-executed: go on with 4 KiB pages, and say so in the reports.
-  if (old)
-    setenv("GLIBC_TUNABLES", old, 1);
-  else
-    unsetenv("GLIBC_TUNABLES");
+  // Not re-executed: go on with 4 KiB pages and the runtime's wait policy, and say so in the reports.
+  if (wait_policy) unsetenv("OMP_WAIT_POLICY");
+  if (huge) {
+    if (old)
+      setenv("GLIBC_TUNABLES", old_tunables.c_str(), 1);
+    else
+      unsetenv("GLIBC_TUNABLES");
+  }
 }
 
 std::string huge_pages_status() {

@@ -16,10 +16,10 @@ inline double seconds_since(Clock::time_point t0) { return std::chrono::duration
 
 /// The CPU's "model name" from /proc/cpuinfo ("unknown" elsewhere).
 std::string cpu_model();
-/// `git describe --always --dirty` of the source tree ("unknown" without git).
-std::string git_describe(const std::string& source_dir);
-/// The source tree (default scenes, scripts): $WEFT_SOURCE_DIR, else the one this binary was configured from.
-std::string source_dir();
+/// weft's data (scripts/ for plots and renders, scenes/ for the default scenes): $WEFT_DATA_DIR,
+/// else share/weft beside the binary's bin/ (installed: PREFIX/bin/weft and PREFIX/share/weft;
+/// the build tree links build/<preset>/share/weft to the source's scripts and scenes).
+std::string data_dir();
 /// The compiler flags of this build (for the reports).
 const char* build_flags();
 /// A CSV field: double-quoted, inner quotes doubled, newlines turned into spaces.
@@ -39,8 +39,9 @@ int worker_threads();
 /// 2-vCPU EPYC VM of bench/results/table-11-1 the setup at 1M vertices took 22.8 s with 4 KiB
 /// pages and 10.1 s with huge pages, the solve 8.0 s and 7.0 s (THP-lean2.md there). Returns (doing
 /// nothing) when the tunable is already set, WEFT_HUGE_PAGES=0, the kernel mode is not
-/// madvise, or the re-execution fails.
-void reexec_with_huge_pages(char** argv);
+/// madvise, or the re-execution fails. In the same re-execution it sets OMP_WAIT_POLICY=PASSIVE
+/// unless the user set it: idle OpenMP threads then sleep instead of spinning.
+void reexec_with_environment(char** argv);
 /// How the heap gets its pages, for the reports: "huge (glibc.malloc.hugetlb=1, THP madvise)",
 /// "huge (THP always)" or "4 KiB (...why...)".
 std::string huge_pages_status();

@@ -17,6 +17,7 @@
 #endif
 
 #include "apps/bench_common.hpp"
+#include "framework/build_info.hpp"
 #include "apps/runner.hpp"
 #include "contact/verify/intersection_check.hpp"
 #include "framework/error.hpp"
@@ -78,9 +79,9 @@ std::array<int, 2> parse_resolution(const std::string& s) {
 }  // namespace
 
 int bench_contact(const BenchContactOptions& opt) {
-  const std::string source_dir = app::source_dir();
+  const std::string data = app::data_dir();
   const std::string scene_path =
-      !opt.scene.empty() ? opt.scene : (fs::path(source_dir.empty() ? "." : source_dir) / "scenes" / "drape_sphere.json").string();
+      !opt.scene.empty() ? opt.scene : (fs::path(data) / "scenes" / "drape_sphere.json").string();
   std::vector<std::string> resolutions = opt.resolutions;
   if (resolutions.empty() && opt.drape)
     for (int n = 11; n <= 81; n += 2) resolutions.push_back(std::to_string(n));
@@ -117,7 +118,7 @@ int bench_contact(const BenchContactOptions& opt) {
   }
 
   const int threads = worker_threads();
-  const std::string cpu = cpu_model(), git = git_describe(source_dir);
+  const std::string cpu = cpu_model(), git = build_commit();
   const fs::path out = opt.out_dir.empty() ? fs::path("out/bench_contact") : fs::path(opt.out_dir);
   std::ofstream jl, csv;
   try {

@@ -23,6 +23,7 @@
 #endif
 
 #include "apps/bench_common.hpp"
+#include "framework/build_info.hpp"
 #include "apps/runner.hpp"
 #include "apps/stability.hpp"
 #include "framework/error.hpp"
@@ -350,9 +351,9 @@ Run collect(const fs::path& jsonl, int id) {
 }  // namespace
 
 int bench_hair(const BenchHairOptions& opt) {
-  const std::string source_dir = app::source_dir();
+  const std::string data = app::data_dir();
   const std::string scene_path =
-      !opt.scene.empty() ? opt.scene : (fs::path(source_dir.empty() ? "." : source_dir) / "scenes" / "hairball_1000.json").string();
+      !opt.scene.empty() ? opt.scene : (fs::path(data) / "scenes" / "hairball_1000.json").string();
   const std::vector<std::string> strategies =
       !opt.strategies.empty() ? opt.strategies : std::vector<std::string>{"rods_impulse", "rods_linear", "rods_adonis"};
   const std::vector<double> dts = !opt.dts.empty() ? opt.dts
@@ -410,7 +411,7 @@ int bench_hair(const BenchHairOptions& opt) {
     }
   }
   const int threads = worker_threads();
-  const std::string cpu = cpu_model(), git = git_describe(source_dir);
+  const std::string cpu = cpu_model(), git = build_commit();
   std::ofstream jl, csv;
   try {
     fs::create_directories(out);

@@ -26,6 +26,7 @@
 
 #include "apps/bench_linear_systems.hpp"
 #include "apps/bench_common.hpp"
+#include "framework/build_info.hpp"
 #include "apps/runner.hpp"
 #include "framework/params_json.hpp"
 #include "linear/sa_amg.hpp"
@@ -424,8 +425,7 @@ int bench_linear(const BenchLinearOptions& opt) {
   const int threads = 1;
 #endif
   const int hw_threads = static_cast<int>(std::thread::hardware_concurrency());
-  const std::string source_dir = app::source_dir();
-  const std::string cpu = cpu_model(), git = git_describe(source_dir);
+  const std::string cpu = cpu_model(), git = build_commit();
   const fs::path out = opt.out_dir.empty() ? fs::path("out/bench_linear") : fs::path(opt.out_dir);
   const int steps_per_frame = static_cast<int>(std::lround(1.0 / fps / 2e-3));
 

@@ -23,7 +23,7 @@ std::string quoted(const std::string& s) {
 
 PlotOutcome plot(const std::string& kind, const std::string& input, const std::string& out, const std::vector<std::string>& extra) {
   const std::string python = "/usr/bin/python3";
-  const std::string script = source_dir() + "/scripts/weft_plot.py";
+  const std::string script = data_dir() + "/scripts/weft_plot.py";
   for (const std::string& f : {python, script})
     if (!std::filesystem::exists(f)) {
       fmt::print(stderr, "{} plot skipped: {} not found\n", kind, f);
@@ -48,7 +48,7 @@ PlotOutcome plot(const std::string& kind, const std::string& input, const std::s
 
 int run_python_tool(const std::string& script_name, const std::vector<std::string>& args) {
   const std::string python = "/usr/bin/python3";
-  const std::string script = source_dir() + "/scripts/" + script_name;
+  const std::string script = data_dir() + "/scripts/" + script_name;
   for (const std::string& f : {python, script})
     if (!std::filesystem::exists(f)) {
       fmt::print(stderr, "error: {} not found{}\n", f, f == python ? " (apt-get install python3)" : "");

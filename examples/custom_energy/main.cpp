@@ -2,7 +2,7 @@
 // mass-spring cloth = EdgeSprings + the library's gravity, backward Euler as incremental
 // potential minimisation, no contact, sparse direct solves. Hangs the demo sheet from two
 // corners until it settles and prints how the energy went.
-//   custom_energy [SCENE] (default: the source tree's scenes/hanging_cloth.json)
+//   custom_energy [SCENE] (default: weft's scenes/hanging_cloth.json)
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -20,7 +20,7 @@ using MassSpringCloth = weft::models::EnergySum<EdgeSprings, weft::models::Gravi
 using Sim = weft::Simulator<MassSpringCloth, weft::integrators::IncrementalPotential, weft::contact::NoContact, weft::linear::Direct>;
 
 int main(int argc, char** argv) {
-  const std::string path = argc > 1 ? argv[1] : WEFT_SOURCE_DIR "/scenes/hanging_cloth.json";
+  const std::string path = argc > 1 ? argv[1] : WEFT_SCENES_DIR "/hanging_cloth.json";
   const weft::Scene scene = weft::load_scene(path, {"cloths.0.mesh.resolution=[11,11]", "time.duration=6", "time.dt=0.020833333333333332"});
   Sim::Params prm;
   std::get<0>(prm.energy.terms).stiffness = 200;  // N/m
