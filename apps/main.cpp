@@ -1,6 +1,7 @@
 // The weft command: run scenes, list the pre-built combinations, print the scene reference.
 #include <CLI/CLI.hpp>
 
+#include <cstdlib>
 #include <sstream>
 #include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -14,6 +15,7 @@
 #include "apps/bench_bending.hpp"
 #include "apps/bench_common.hpp"
 #include "apps/bench_contact.hpp"
+#include "apps/cli_args.hpp"
 #include "apps/bench_hair.hpp"
 #include "apps/bench_linear.hpp"
 #include "apps/plots.hpp"
@@ -25,13 +27,16 @@
 
 int main(int argc, char** argv) {
   using namespace weft;
-  app::reexec_with_huge_pages(argv);  // returns unless it re-executes this program
+  app::reexec_with_environment(argv);  // returns unless it re-executes this program
   CLI::App app{"weft: cloth and hair simulation with frictional contact, composed from compile-time policies"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("weft ") + version() + ", built from " + build_commit());
   int threads = 0;
   std::string log_level = "info";
-  app.add_option("--threads", threads, "worker threads (default: all cores, or OMP_NUM_THREADS)")->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", threads,
+                 "worker threads (default: OMP_NUM_THREADS, else `weft run` picks by the scene's size: one thread below "
+                 "app::parallel_min_vertices vertices, every core above)")
+      ->check(CLI::Range(0, app::max_threads));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
 
@@ -124,7 +129,7 @@ int main(int argc, char** argv) {
 
   app::BenchContactOptions bench_contact;
   auto* cmd_bench_contact = cmd_bench->add_subcommand(
-      "contact", "cloth contact: seconds per step and the shares of detection, response and solve per resolution (issue 6)");
+      "contact", "cloth contact: seconds per step and the shares of detection, response and solve per resolution");
   cmd_bench_contact->add_option("scene", bench_contact.scene, "scene file (default: the source tree's scenes/drape_sphere.json)");
   cmd_bench_contact->add_option("overrides", bench_contact.overrides, "key=value overrides applied to every run");
   cmd_bench_contact->add_option("--combo", bench_contact.combo, "combination (default: the scene's)");
@@ -182,9 +187,10 @@ int main(int argc, char** argv) {
 
   app.footer("See README.md and docs/scene-reference.md.");
   try {
-    app.parse(argc, argv);
+    app.parse(app::overrides_out_of_lists(argc, argv));
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int rc = app.exit(e);  // prints the message (or the help) as CLI11 does
+    return rc == 0 ? 0 : app::exit_config;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("[%H:%M:%S] %v");
@@ -193,6 +199,7 @@ int main(int argc, char** argv) {
 #ifdef _OPENMP
   if (threads > 0) omp_set_num_threads(threads);
 #endif
+  run.threads_given = threads > 0 || std::getenv("OMP_NUM_THREADS") != nullptr;
 
   if (*cmd_run) {
     run.progress = bar ? 1 : plain ? 0 : -1;

@@ -138,8 +138,8 @@ class FrameWriter {
       const int f0 = scene.cloth_face_offset[c], f1 = scene.cloth_face_offset[c + 1];
       Eigen::MatrixX3i F = scene.mesh.faces().middleRows(f0, f1 - f0).array() - scene.cloth_vertex_offset[c];
       faces_.push_back(F);
-      names_.push_back(spec.cloths.size() == 1 ? spec.cloths[c].name : fmt::format("{}{}", spec.cloths[c].name, c));
     }
+    names_ = cloth_output_names(spec);
     if (spec.output.vtp) pvd_.emplace((dir_ / "frames.pvd").string());
   }
   /// List frame `k`'s files already on disk (written before a resume) in the .pvd series.
@@ -152,7 +152,7 @@ class FrameWriter {
     for (size_t c = 0; c < faces_.size(); ++c) add(fmt::format("{}_{:04d}", names_[c], k), static_cast<int>(c));
     const int parts = static_cast<int>(faces_.size()) + (spec.rods.empty() ? 0 : 1);
     if (!spec.rods.empty()) add(fmt::format("rods_{:04d}", k), static_cast<int>(faces_.size()));
-    for (size_t o = 0; o < spec.obstacles.size(); ++o) add(fmt::format("{}{}_{:04d}", spec.obstacles[o].name, o, k), parts + static_cast<int>(o));
+    for (size_t o = 0; o < spec.obstacles.size(); ++o) add(fmt::format("{}_{:04d}", obstacle_output_name(spec, o), k), parts + static_cast<int>(o));
   }
   /// Write frame `k` of the current state; returns the number of files written.
   int write(int k, const State& s) {
@@ -181,7 +181,7 @@ class FrameWriter {
       const MeshData m = obstacle_mesh(spec.obstacles[o], s.t);
       Eigen::VectorXd x(3 * m.V.rows());
       for (Eigen::Index i = 0; i < m.V.rows(); ++i) x.segment<3>(3 * i) = m.V.row(i).transpose();
-      const std::string base = fmt::format("{}{}_{:04d}", spec.obstacles[o].name, o, k);
+      const std::string base = fmt::format("{}_{:04d}", obstacle_output_name(spec, o), k);
       if (spec.output.obj) write_obj((dir_ / (base + ".obj")).string(), x, m.F), ++files;
       if (spec.output.vtp) {
         write_vtp((dir_ / (base + ".vtp")).string(), x, m.F), ++files;
@@ -265,6 +265,10 @@ int run_scene(const RunOptions& opt) {
     return exit_config;
   }
   const Scene& scene = sim->scene();
+#ifdef _OPENMP
+  // Threads by size: a small scene's loops are too short to pay for waking a second thread.
+  if (!opt.threads_given && sim->state().num_vertices() < parallel_min_vertices) omp_set_num_threads(1);
+#endif
   const auto& time = scene.spec.time;
   const int spf = time.steps_per_frame(), frames = time.num_frames();
   const int every = scene.spec.output.every;

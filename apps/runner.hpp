@@ -24,7 +24,12 @@ struct RunOptions {
   bool quiet = false;
   int checkpoint_every = 0;          ///< write checkpoint.wckp every this many frames (0: only on interrupt and failure)
   std::string resume;                ///< checkpoint to continue from ("" = start at t = 0)
+  bool threads_given = false;        ///< --threads or OMP_NUM_THREADS: keep it; else pick by the scene's size
 };
+
+/// Below this many simulated vertices `weft run` uses one thread unless told otherwise: on the
+/// 961-vertex demo two threads were slower than one on a loaded 2-core machine.
+inline constexpr long long parallel_min_vertices = 8000;
 
 /// Runs a scene; returns the exit code. Messages go to stderr.
 int run_scene(const RunOptions& options);

@@ -218,8 +218,48 @@ Checker check_obstacle_phases(const ObstacleSpec& o, const std::string& path) {
   return c;
 }
 
+}  // namespace
+
+std::vector<std::string> cloth_output_names(const SceneSpec& s) {
+  std::vector<std::string> names;
+  for (size_t c = 0; c < s.cloths.size(); ++c)
+    names.push_back(s.cloths.size() == 1 ? s.cloths[c].name : fmt::format("{}{}", s.cloths[c].name, c));
+  return names;
+}
+
+std::string obstacle_output_name(const SceneSpec& s, size_t o) { return fmt::format("{}{}", s.obstacles[o].name, o); }
+
+bool is_safe_name(std::string_view name) {
+  if (name.empty() || name.size() > 64 || name.find("..") != std::string_view::npos) return false;
+  const auto alnum = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9'); };
+  if (!alnum(name.front())) return false;
+  for (char c : name)
+    if (!alnum(c) && c != '_' && c != '-' && c != '.') return false;
+  return true;
+}
+
+namespace {
+
 void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
   Checker c;
+  const auto check_name = [&](const std::string& key, const std::string& name) {
+    c.require(is_safe_name(name), key, fmt::format("\"{}\"", name),
+              "1-64 characters of A-Z a-z 0-9 _ - . starting with a letter or digit (it names output files)");
+  };
+  for (size_t k = 0; k < s.cloths.size(); ++k) check_name(fmt::format("cloths.{}.name", k), s.cloths[k].name);
+  for (size_t k = 0; k < s.obstacles.size(); ++k) check_name(fmt::format("obstacles.{}.name", k), s.obstacles[k].name);
+  {  // two parts must not write the same files
+    std::vector<std::pair<std::string, std::string>> bases;  // (file base, key)
+    const std::vector<std::string> cloth_bases = cloth_output_names(s);
+    for (size_t k = 0; k < cloth_bases.size(); ++k) bases.emplace_back(cloth_bases[k], fmt::format("cloths.{}.name", k));
+    if (!s.rods.empty()) bases.emplace_back("rods", "rods");
+    for (size_t k = 0; k < s.obstacles.size(); ++k) bases.emplace_back(obstacle_output_name(s, k), fmt::format("obstacles.{}.name", k));
+    for (size_t a = 0; a < bases.size(); ++a)
+      for (size_t b = a + 1; b < bases.size(); ++b)
+        if (bases[a].first == bases[b].first)
+          c.fail(fmt::format("{} and {}: both would write the output files {}_*.obj/.vtp; give them different names", bases[a].second,
+                             bases[b].second, bases[a].first));
+  }
   const double frame = 1.0 / s.time.frame_rate;
   const double ratio = frame / s.time.dt;
   c.require(s.time.dt <= frame * (1 + 1e-12), "time.dt", s.time.dt,
@@ -498,6 +538,8 @@ void apply_override(Json& doc, const std::string& assignment) {
     value = Json::parse(text);
   } catch (const Json::parse_error&) {
     value = text;
+  } catch (const Json::exception&) {  // out_of_range: a number beyond a double, e.g. 1e999
+    throw ConfigError(fmt::format("override '{}': {} is not a finite number (valid: a double, |x| < 1.8e308)", assignment, text));
   }
   Json* node = &doc;
   std::stringstream ss(key);
@@ -526,13 +568,21 @@ void apply_override(Json& doc, const std::string& assignment) {
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("{}: scene file not found", path));
+  if (!std::filesystem::is_regular_file(status))
+    throw ConfigError(fmt::format("{}: not a regular file (a {}); give a scene file (JSON)", path,
+                                  std::filesystem::is_directory(status) ? "directory" : "special file"));
   std::ifstream in(path);
-  if (!in) throw ConfigError(fmt::format("{}: scene file not found or not readable", path));
+  if (!in) throw ConfigError(fmt::format("{}: scene file not readable", path));
   Json doc;
   try {
     doc = Json::parse(in, nullptr, true, /*ignore_comments=*/true);
   } catch (const Json::parse_error& e) {
     throw ConfigError(fmt::format("{}: malformed JSON: {}", path, e.what()));
+  } catch (const Json::exception& e) {  // out_of_range: a number beyond a double
+    throw ConfigError(fmt::format("{}: a number is not finite (valid: a double, |x| < 1.8e308): {}", path, e.what()));
   }
   std::vector<std::string> errors;
   for (const auto& o : overrides) {

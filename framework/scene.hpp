@@ -35,7 +35,7 @@ inline constexpr std::array<std::string_view, 2> warp_from_names = {"angle", "uv
 /// constants of a woven fabric (methods/shells §3.2).
 ///
 /// **Warp/weft convention** (methods/shells §3.2 leaves the assignment of the structural direction
-/// ahat to warp or weft to the project): the spec's x axis, ahat_perp, is the **warp**; its y
+/// ahat to warp or weft to the project): the x axis of methods/shells §3.2, ahat_perp, is the **warp**; its y
 /// axis, ahat, is the **weft** (in the rest plane, perpendicular to the warp). Hence
 ///   Y   = Y_x  = youngs_modulus_warp,      eta = Y_y / Y_x = youngs_modulus_weft / youngs_modulus_warp,
 ///   nu  = nu_xy = poisson_ratio: the strain ratio -eps_weft / eps_warp under uniaxial stress
@@ -90,9 +90,9 @@ struct ShellMaterial {
     v.field("youngs_modulus", youngs_modulus,
             {Unit::pressure, Range::gt(0), "isotropic: Young's modulus Y of the sheet material (not read when orthotropic)"});
     v.field("youngs_modulus_warp", youngs_modulus_warp,
-            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the warp (spec x axis, ahat_perp)"});
+            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the warp (x axis of methods/shells §3.2, ahat_perp)"});
     v.field("youngs_modulus_weft", youngs_modulus_weft,
-            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the weft (spec y axis, ahat)"});
+            {Unit::pressure, Range::gt(0), "orthotropic (required): Young's modulus along the weft (y axis of methods/shells §3.2, ahat)"});
     v.field("shear_modulus", shear_modulus,
             {Unit::pressure, Range::gt(0), "orthotropic (required): engineering in-plane shear modulus G12 (the thesis' G = 2 G12)"});
     // The isotropic bound is a field range; an orthotropic nu_xy is bounded only together with
@@ -344,6 +344,17 @@ struct SceneSpec {
 };
 
 /// A loaded, validated scene: the spec plus everything derived from it.
+/// The base names of a scene's output files, as `weft run` writes them: each cloth's (its name, with
+/// its index appended when there are several), "rods", and each obstacle's (name + index).
+/// Frame k of a part is <base>_<kkkk>.obj / .vtp.
+std::vector<std::string> cloth_output_names(const SceneSpec& s);
+std::string obstacle_output_name(const SceneSpec& s, size_t obstacle);
+
+/// A name that is safe as a file name on every platform weft writes to: 1-64 characters of
+/// A-Z a-z 0-9 _ - . starting with a letter or digit (no path separator, no "..", nothing XML
+/// must escape).
+bool is_safe_name(std::string_view name);
+
 struct Scene {
   SceneSpec spec;
   std::string path;                 ///< scene file ("" if built in code)
@@ -353,7 +364,7 @@ struct Scene {
   std::vector<int> cloth_vertex_offset;  ///< #cloths+1: vertex range of each cloth
   std::vector<int> cloth_face_offset;    ///< #cloths+1: face range of each cloth
   std::vector<int> face_cloth;      ///< #F: cloth index of each face (material = cloths[c].material)
-  /// #F: unit warp direction (spec x axis, ahat_perp) in the rest plane of each face of an
+  /// #F: unit warp direction (x axis of methods/shells §3.2, ahat_perp) in the rest plane of each face of an
   /// orthotropic cloth, zero for isotropic cloths. May be empty when no cloth is orthotropic
   /// (scenes built in code fill it themselves).
   std::vector<Eigen::Vector3d> face_warp;

@@ -96,6 +96,26 @@ TEST_SUITE("framework") {
     CHECK(errors_of(doc).find("cloths, rods: a scene needs at least one cloth or one rod family") != std::string::npos);
   }
 
+  TEST_CASE("scene: names that would leave the output directory or break its XML or collide are refused") {
+    for (const char* bad : {"../../evil", "a/b", "a<&\"b", ".hidden", "", "x..y"}) {
+      Json doc = base_scene();
+      doc["cloths"][0]["name"] = bad;
+      const std::string e = errors_of(doc);
+      CAPTURE(bad);
+      CHECK(contains(e, "cloths.0.name"));
+      CHECK(contains(e, "it names output files"));
+    }
+    Json doc = base_scene();
+    doc["cloths"][0]["name"] = "sheet-1.a_B";
+    CHECK(errors_of(doc).empty());
+    // One cloth named like the first obstacle's output (name + index) would overwrite its frames.
+    doc["cloths"][0]["name"] = "table0";
+    doc["obstacles"] = Json::parse(R"([{"shape": "plane", "name": "table", "center": [0, 0, -1]}])");
+    CHECK(contains(errors_of(doc), "cloths.0.name and obstacles.0.name: both would write the output files table0_*"));
+    doc["obstacles"][0]["name"] = "../table";
+    CHECK(contains(errors_of(doc), "obstacles.0.name"));
+  }
+
   TEST_CASE("scene: scripted pins follow their rigid motion") {
     Json doc = base_scene();
     doc["cloths"][0]["pins"][0]["motion"] = {{"angular_velocity", {0, 0, 2 * M_PI}}, {"velocity", {0, 0, 1}}, {"start", 0.1}};
@@ -136,6 +156,27 @@ TEST_SUITE("framework") {
     }
     CHECK_THROWS_WITH_AS(load_scene(path), doctest::Contains("malformed JSON"), ConfigError);
     std::filesystem::remove(path);
+  }
+
+  TEST_CASE("scene: numbers beyond a double and paths that are not scene files are configuration errors") {
+    const auto dir = std::filesystem::temp_directory_path() / "weft_scene_overflow";
+    std::filesystem::create_directories(dir);
+    const auto path = (dir / "scene.json").string();
+    {
+      std::ofstream f(path);
+      f << base_scene().dump(2);
+    }
+    CHECK_THROWS_WITH_AS(load_scene(path, {"time.dt=1e999"}), doctest::Contains("time.dt=1e999': 1e999 is not a finite number"),
+                         ConfigError);
+    {
+      Json doc = base_scene();
+      std::ofstream f(path);
+      f << doc.dump(2).replace(doc.dump(2).find("0.01"), 4, "-1e999");
+    }
+    CHECK_THROWS_WITH_AS(load_scene(path), doctest::Contains("a number is not finite"), ConfigError);
+    CHECK_THROWS_WITH_AS(load_scene(dir.string()), doctest::Contains("not a regular file (a directory)"), ConfigError);
+    CHECK_THROWS_WITH_AS(load_scene((dir / "none.json").string()), doctest::Contains("scene file not found"), ConfigError);
+    std::filesystem::remove_all(dir);
   }
 
   TEST_CASE("scene: an orthotropic material builds with the warp from the sheet axes") {
