@@ -130,6 +130,31 @@ TEST_SUITE("apps") {
     CHECK(r.output.find("/nonexistent/scene.json: scene file not found") != std::string::npos);
   }
 
+  TEST_CASE("cli: an override after a list option's values is an override - parse errors and bad names exit 2") {
+    const auto dir = temp_dir("cli_order");
+    const std::string scene = write_file(dir / "scene.json", small_scene().dump());
+    // time.dt=0.02 after --combos: read as an override (the list would otherwise swallow it and
+    // fail with "unknown combination").
+    Result r = run_weft(fmt::format("ablate {} --combos cloth_ip_direct time.dt=0.02 --duration 0.1 --no-plots -q --out {}", scene,
+                                    (dir / "ablate").string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    const json a = json::parse(slurp(dir / "ablate" / "ablate.json"));
+    CHECK(a.at("rows").size() == 1);
+    CHECK(a.at("rows")[0].at("combo") == "cloth_ip_direct");
+    CHECK(a.at("overrides") == json::array({"time.dt=0.02"}));
+    for (const char* bad : {"run --no-such-flag", "--threads 100000 run x.json", "run"}) {
+      r = run_weft(bad);
+      CAPTURE(bad);
+      CHECK(r.code == 2);
+    }
+    r = run_weft(fmt::format("run {} --out {} cloths.0.name=../../evil", scene, (dir / "out" / "t").string()));
+    CHECK(r.code == 2);
+    CHECK(r.output.find("cloths.0.name = \"../../evil\"") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "out"));
+    CHECK_FALSE(fs::exists(dir / "evil_0000.obj"));
+  }
+
   TEST_CASE("cli: obstacles without a contact strategy are rejected / with the reason") {
     json s = small_scene();
     s["obstacles"] = json::array({{{"shape", "sphere"}, {"center", {0, 0, -0.5}}, {"radius", 0.2}}});
