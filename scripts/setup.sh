@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install what is missing (Debian 12 packages), configure once, build incrementally.
 # Idempotent: a second run installs nothing and rebuilds nothing that did not change.
+#   scripts/setup.sh [TARGET ...]   build only these targets (default: everything of the preset)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -31,4 +32,8 @@ PRESET="${WEFT_PRESET:-release}"
 if [ ! -f "build/$PRESET/build.ninja" ]; then
   cmake --preset "$PRESET"
 fi
-cmake --build --preset "$PRESET"
+if (($#)); then
+  cmake --build --preset "$PRESET" --target "$@"
+else
+  cmake --build --preset "$PRESET"
+fi

@@ -38,7 +38,7 @@ TEST_SUITE("apps") {
       CHECK(c.steps == c.steps_planned);
       CHECK(c.energy_ratio <= 0.1);
     }
-    CHECK(slurp(std::filesystem::path(o.out_dir) / "stability_map.txt").find("cloth_ip_direct") != std::string::npos);
+    CHECK(slurp(std::filesystem::path(o.out_dir) / "stability_map.txt").find("cloth_ip_sa_ppcg") != std::string::npos);
     // The map as an image when Debian's matplotlib is there (the plot is skipped with a message otherwise).
     if (std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") == 0)
       for (const char* f : {"stability_map.png", "stability_map.svg"}) CHECK_MESSAGE(std::filesystem::exists(std::filesystem::path(o.out_dir) / f), f);
