@@ -11,7 +11,8 @@ case "${1:-}" in
     ctest --preset slow ;;
   --backends)
     ./scripts/install_backends.sh
-    WEFT_PRESET=backends ./scripts/setup.sh
+    # Only what the back-end tests run: their suites and the weft command that links them.
+    WEFT_PRESET=backends ./scripts/setup.sh weft test_linear_backends test_petsc_two_ranks
     ctest --preset backends ;;
   "")
     ./scripts/setup.sh
