@@ -27,9 +27,13 @@ struct RunOptions {
   bool threads_given = false;        ///< --threads or OMP_NUM_THREADS: keep it; else pick by the scene's size
 };
 
-/// Below this many simulated vertices `weft run` uses one thread unless told otherwise: on the
-/// 961-vertex demo two threads were slower than one on a loaded 2-core machine.
-inline constexpr long long parallel_min_vertices = 8000;
+/// Below this many simulated vertices `weft run` uses one thread unless told otherwise. The
+/// hanging cloth for 24 steps, 2-vCPU EPYC, idle (2026-12-02), 1 / 2 threads: 961 vertices
+/// 0.59 / 0.68 s, 1,681 1.42 / 1.18 s, 2,601 1.73 / 1.94 s, 3,721 3.64 / 3.11 s, 10,201
+/// 9.75 / 7.98 s: the second thread pays from a few thousand vertices, and below that it
+/// loses when the other core is busy (the 961-vertex demo took 23.7 s on two threads against
+/// 15.0 s on one on a loaded machine).
+inline constexpr long long parallel_min_vertices = 3000;
 
 /// Runs a scene; returns the exit code. Messages go to stderr.
 int run_scene(const RunOptions& options);
