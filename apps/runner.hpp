@@ -31,8 +31,8 @@ struct RunOptions {
 /// hanging cloth for 24 steps, 2-vCPU EPYC, idle (2026-12-02), 1 / 2 threads: 961 vertices
 /// 0.59 / 0.68 s, 1,681 1.42 / 1.18 s, 2,601 1.73 / 1.94 s, 3,721 3.64 / 3.11 s, 10,201
 /// 9.75 / 7.98 s: the second thread pays from a few thousand vertices, and below that it
-/// loses when the other core is busy (the 961-vertex demo took 23.7 s on two threads against
-/// 15.0 s on one on a loaded machine).
+/// loses when the other core is busy (60 steps of a small scene took 23.7 s on two threads
+/// against 15.0 s on one on a loaded machine).
 inline constexpr long long parallel_min_vertices = 3000;
 
 /// Runs a scene; returns the exit code. Messages go to stderr.
