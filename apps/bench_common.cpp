@@ -53,10 +53,10 @@ std::string cpu_model() {
   return "unknown";
 }
 
-Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads) {
+Json meta_record(std::string_view bench, const std::string& cpu, int threads) {
   return {{"record", "meta"},
           {"bench", bench},
-          {"git", git},
+          {"git", build_commit()},
           {"build", build_commit()},
           {"compiler", __VERSION__},
           {"flags", build_flags()},

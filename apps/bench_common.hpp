@@ -24,9 +24,10 @@ std::string data_dir();
 const char* build_flags();
 /// A CSV field: double-quoted, inner quotes doubled, newlines turned into spaces.
 std::string csv_field(const std::string& s);
-/// The first JSONL record of a bench: {"record": "meta", "bench", "git", "compiler", "flags",
+/// The first JSONL record of a bench: {"record": "meta", "bench", "git" and "build" (both the
+/// binary's build_commit()), "compiler", "flags",
 /// "cpu", "hardware_threads", "threads"}; the bench adds its own keys.
-Json meta_record(std::string_view bench, const std::string& git, const std::string& cpu, int threads);
+Json meta_record(std::string_view bench, const std::string& cpu, int threads);
 
 /// OpenMP worker threads of the next parallel region (1 without OpenMP).
 int worker_threads();

@@ -130,7 +130,7 @@ int bench_contact(const BenchContactOptions& opt) {
     fmt::print(stderr, "error: {}: {}\n", out.string(), e.what());
     return exit_config;
   }
-  Json meta = meta_record("contact", git, cpu, threads);
+  Json meta = meta_record("contact", cpu, threads);
   meta.update(Json{{"scene", scene_path},
              {"overrides", opt.overrides},
              {"skip", skip},

@@ -426,7 +426,7 @@ int bench_hair(const BenchHairOptions& opt) {
     return exit_config;
   }
   csv.flush();
-  Json meta = meta_record("hair", git, cpu, threads);
+  Json meta = meta_record("hair", cpu, threads);
   meta.update(Json{{"scene", scene_path},
              {"rods", rods},
              {"overrides", opt.overrides},

@@ -448,7 +448,7 @@ int bench_linear(const BenchLinearOptions& opt) {
     jl.open(out / "bench_linear.jsonl");
     csv.open(out / "bench_linear.csv");
     if (!jl || !csv) throw std::runtime_error("cannot open the output files");
-    Json meta = meta_record("linear", git, cpu, threads);
+    Json meta = meta_record("linear", cpu, threads);
     meta.update(Json{{"quick", opt.quick},
               {"direct_solver", direct_label}, {"reference", chosen.front().key}, {"tolerance", opt.tolerance},
               {"max_iterations", opt.max_iterations}, {"dt", 2e-3}, {"fps", fps}, {"steps_per_frame", steps_per_frame},

@@ -7,7 +7,8 @@
 namespace weft::app {
 namespace {
 
-// The list options whose values are never key=value overrides.
+// The list options whose values are names or numbers, never key=value overrides (--sa and --vary
+// take KEY=VALUE values and are not listed; --solvers entries are name:KEY=VALUE, never matched).
 constexpr std::array<std::string_view, 8> list_options = {"--combos",   "--dt",    "--strategies",    "--resolutions",
                                                           "--examples", "--sizes", "--tessellations", "--solvers"};
 

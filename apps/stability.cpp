@@ -1,7 +1,6 @@
 #include "apps/stability.hpp"
 
 #include "apps/bench_common.hpp"
-#include "framework/build_info.hpp"
 #include "apps/plots.hpp"
 
 #include <fmt/format.h>
@@ -157,7 +156,7 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
   std::filesystem::create_directories(opt.out_dir);
   {
     // What made this sweep: the build, the machine and the command, beside its table.
-    Json meta = meta_record("stability", build_commit(), cpu_model(), worker_threads());
+    Json meta = meta_record("stability", cpu_model(), worker_threads());
     meta["scene"] = opt.scene;
     meta["overrides"] = opt.overrides;
     meta["combos"] = opt.combos;
