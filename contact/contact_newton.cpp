@@ -12,6 +12,7 @@
 #include <numbers>
 
 #include "contact/coulomb.hpp"
+#include "framework/interrupt.hpp"
 
 namespace weft::contact {
 
@@ -105,6 +106,7 @@ NewtonContactResult solve_contacts_newton(const NewtonContactProblem& p, const N
   std::vector<int> active, pos(m);
   std::vector<Matrix3d> A(m), B(m);
   while (err > opt.tolerance && res.iterations < opt.max_iterations) {
+    if (stop_requested()) break;  // framework/interrupt.hpp: the caller reports the interruption
     ++res.iterations;
     // 1. The contacts in the system and their local derivatives.
     active.clear();

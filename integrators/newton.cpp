@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "framework/interrupt.hpp"
+
 namespace weft::integrators {
 
 namespace {
@@ -17,6 +19,11 @@ NewtonFailure failure(NewtonReport& nr, std::string stage, Status st, std::strin
 // iterations (a failure), or go on (false, no failure).
 bool should_stop(NewtonReport& nr, double r, int it, int max_iterations, const char* method, NewtonFailure& out) {
   nr.final_residual = r;
+  if (stop_requested()) {  // a signal: the step stops here and is reported as interrupted
+    nr.stop_reason = "interrupted";
+    out = failure(nr, "newton", Status::interrupted, fmt::format("{} interrupted at iteration {} by a stop request", method, it));
+    return true;
+  }
   if (r <= nr.tolerance) {
     nr.stop_reason = "residual";
     return true;

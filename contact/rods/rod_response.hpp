@@ -61,6 +61,7 @@
 #include "contact/rods/thick_ccd.hpp"
 #include "framework/concepts.hpp"
 #include "framework/params.hpp"
+#include "framework/interrupt.hpp"
 #include "framework/scene.hpp"
 #include "framework/status.hpp"
 #include "framework/timers.hpp"
@@ -273,6 +274,11 @@ class RodResponse {
     // warm from the last round (`round_start`: by default those of its first iteration, which
     // solved the same linearisation at d_DEL).
     for (int round = 0; round <= prm_.redetections; ++round) {
+      if (stop_requested()) {
+        rep.status = Status::interrupted;
+        rep.message = fmt::format("the contact response was interrupted by a stop request before detection round {}", round);
+        break;
+      }
       RodCurves curves;
       curves.first.assign(1, 0);
       for (int r = 0; r < R; ++r) {
@@ -645,7 +651,7 @@ class RodResponse {
     };
     const Snapshot start = save();
     GroupStats st = solve_group(sys, ids, rods, HessianMode::exact);
-    if (!st.left_domain && !st.capped) return st;
+    if ((!st.left_domain && !st.capped) || st.status == Status::interrupted) return st;
     // A capped exact iteration is kept if the projected one fails or is capped too.
     const Snapshot exact_end = save();
     restore(start);
@@ -682,6 +688,14 @@ class RodResponse {
     return again;
   }
 
+  /// A stop request (framework/interrupt.hpp): the group's iteration ends there.
+  static bool interrupted(GroupStats& st) {
+    if (!stop_requested()) return false;
+    st.status = Status::interrupted;
+    st.message = fmt::format("the contact solve of a group of {} contacts was interrupted by a stop request at iteration {}", st.contacts, st.outer);
+    return true;
+  }
+
   template <class System>
   GroupStats solve_group(System& sys, const std::vector<int>& ids, const std::vector<int>& rods, HessianMode relinearization) {
     GroupStats st;
@@ -708,6 +722,7 @@ class RodResponse {
     std::vector<unsigned char> fresh(rods.size(), 0);  // re-linearised in this iteration, by slot
     for (int outer = 1;; ++outer) {
       st.outer = outer;
+      if (interrupted(st)) return st;
       for (int id : rebuild) build_compliance(sys, contacts_[id]);
       // Predictor: the DEL solution first, then d - K^-1 f(d) with each rod's (possibly stale) K.
       // With `predictor = relinearized` a rod whose K was not refreshed keeps its last
@@ -750,6 +765,7 @@ class RodResponse {
         Anderson anderson(prm_.sp_anderson);
         Eigen::VectorXd x_k, g_k, mixed;
         for (int sp = 0; sp < prm_.sp_max; ++sp) {
+          if (interrupted(st)) return st;
           ++st.sp_iterations;
           for (size_t i = 0; i < ids.size(); ++i) before[i] = contacts_[ids[i]].lambda;
           for (SweepMode mode : {SweepMode::normal, SweepMode::friction}) {
@@ -779,6 +795,7 @@ class RodResponse {
         int sweeps = 0;
         double err = contact_error(contacts_, ids, xs);
         while (err > prm_.contact_tol && sweeps < prm_.gs_max) {
+          if (sweeps % 16 == 0 && interrupted(st)) return st;
           gauss_seidel_sweep(contacts_, order, xs, SweepMode::coulomb);
           ++sweeps;
           err = contact_error(contacts_, ids, xs);
@@ -795,6 +812,7 @@ class RodResponse {
         st.fallbacks += nr.fallbacks;
         st.sweeps += nr.sweeps;
         st.residual = nr.residual;
+        if (interrupted(st)) return st;  // the Newton contact solver stopped early for it
       }
       st.unconverged = st.residual > prm_.contact_tol;
       if (outer == 1)
