@@ -1,8 +1,10 @@
 #include "framework/checkpoint.hpp"
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -16,6 +18,18 @@ static_assert(std::endian::native == std::endian::little, "checkpoints are writt
 
 namespace {
 constexpr char magic[8] = {'W', 'E', 'F', 'T', 'C', 'K', 'P', 'T'};
+}
+
+std::string Digest::hex() const { return fmt::format("{:016x}", h_); }
+
+void require_finite(const Checkpoint& c, std::initializer_list<const char*> names) {
+  for (const char* name : names) {
+    if (!c.has(name)) continue;
+    const auto& v = c.get(name);
+    for (std::size_t i = 0; i < v.size(); ++i)
+      if (!std::isfinite(v[i]))
+        throw ConfigError(fmt::format("checkpoint array '{}' holds a non-finite value, {}, at index {}: the file is damaged", name, v[i], i));
+  }
 }
 
 void Checkpoint::put(std::string name, std::vector<double> values) {
@@ -39,12 +53,22 @@ const std::vector<double>& Checkpoint::get(const std::string& name, long long ex
   throw ConfigError(fmt::format("checkpoint has no array '{}'", name));
 }
 
+namespace {
+/// The arrays' names and bytes: a damaged or edited data section is refused on read.
+std::string data_digest(const std::vector<std::pair<std::string, std::vector<double>>>& arrays) {
+  Digest d;
+  for (const auto& [name, v] : arrays) d.add(name.data(), name.size()).add(v.data(), v.size() * sizeof(double));
+  return d.hex();
+}
+}  // namespace
+
 void write_checkpoint(const std::string& path, const Checkpoint& c) {
   Json header = c.header;
   header["format"] = Checkpoint::format;
   Json table = Json::array();
   for (const auto& [name, v] : c.arrays) table.push_back({{"name", name}, {"size", v.size()}});
   header["arrays"] = table;
+  header["digest"] = data_digest(c.arrays);
   const std::string text = header.dump();
   const std::uint64_t length = text.size();
   AtomicFile f(path);
@@ -58,6 +82,11 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
 }
 
 Checkpoint read_checkpoint(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("checkpoint {}: file not found", path));
+  if (!std::filesystem::is_regular_file(status))
+    throw ConfigError(fmt::format("checkpoint {}: not a regular file (a {})", path, std::filesystem::is_directory(status) ? "directory" : "FIFO, socket or device"));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(fmt::format("checkpoint {}: cannot open the file", path));
   in.seekg(0, std::ios::end);
@@ -95,6 +124,11 @@ Checkpoint read_checkpoint(const std::string& path) {
     c.arrays.emplace_back(a["name"].get<std::string>(), std::move(v));
   }
   if (in.peek() != std::char_traits<char>::eof()) throw fail("trailing bytes after the last array");
+  if (c.header.contains("digest")) {  // checkpoints of older builds have none
+    if (!c.header["digest"].is_string() || c.header["digest"].get<std::string>() != data_digest(c.arrays))
+      throw fail("its data does not match the digest in its header: the file is damaged");
+    c.header.erase("digest");
+  }
   c.header.erase("arrays");
   c.header.erase("format");
   return c;

@@ -13,6 +13,8 @@
 /// A reader in another language needs only the header: numpy.fromfile(f, '<f8', offset=16 + H).
 #include <Eigen/Core>
 
+#include <cstddef>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -38,6 +40,31 @@ struct Checkpoint {
   void put_scalar(std::string name, double value) { put(std::move(name), std::vector<double>{value}); }
   double get_scalar(const std::string& name) const { return get(name, 1)[0]; }
 };
+
+/// A 64-bit FNV-1a digest of raw bytes, printed as 16 hex digits: it ties a checkpoint to
+/// the mesh of the scene that wrote it (faces and rest positions, bit for bit), so that a
+/// state is never resumed on another mesh that happens to have as many vertices.
+class Digest {
+ public:
+  Digest& add(const void* data, std::size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < bytes; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
+    return *this;
+  }
+  /// The coefficients of a dense Eigen object, in storage order.
+  template <class M>
+  Digest& add_matrix(const M& m) {
+    return add(m.data(), static_cast<std::size_t>(m.size()) * sizeof(typename M::Scalar));
+  }
+  std::string hex() const;
+
+ private:
+  unsigned long long h_ = 14695981039346656037ull;
+};
+
+/// Every value of the named arrays is finite; throws ConfigError naming the array and the
+/// first bad index otherwise (a state is always finite: a step that produced NaN fails).
+void require_finite(const Checkpoint& c, std::initializer_list<const char*> names);
 
 /// The state a cloth `Simulator`'s policy carries from one step to the next, in a
 /// checkpoint. A policy takes part in checkpoints in one of two ways:

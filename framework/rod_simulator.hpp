@@ -20,6 +20,7 @@
 #include <cmath>
 #include <memory>
 #include <type_traits>
+#include <new>
 #include <vector>
 
 #include "framework/band_matrix.hpp"
@@ -131,8 +132,33 @@ class RodSimulator {
   RodSimulator(const RodSimulator&) = delete;
   RodSimulator& operator=(const RodSimulator&) = delete;
 
-  /// Advance by one time step of `scene().spec.time.dt`.
+  /// Advance by one time step of `scene().spec.time.dt`. A step that fails leaves q, v, the
+  /// frames and t as they were at its start, an internal error (a broken invariant, an
+  /// allocation that failed: stage "internal") included.
   StepReport step() {
+    const int before = steps_;
+    try {
+      return advance();
+    } catch (const std::exception& e) {
+      if (frames_saved_)
+        for (size_t r = 0; r < bodies_.size(); ++r) bodies_[r].frames = start_frames_[r];
+      StepReport rep;
+      rep.step = steps_ = before + 1;
+      rep.dt = scene_.spec.time.dt;
+      return rep.fail("internal", Status::numerical_issue,
+                      fmt::format("internal error: {}", dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory (std::bad_alloc)" : e.what()),
+                      centre_.t);
+    }
+  }
+
+ private:
+  std::string rest_digest() const {
+    Digest d;
+    for (const Eigen::VectorXd& r : scene_.rods.rest) d.add_matrix(r);
+    return d.hex();
+  }
+
+  StepReport advance() {
     StepReport rep;
     dt_ = scene_.spec.time.dt;
     rep.step = ++steps_;
@@ -140,6 +166,7 @@ class RodSimulator {
     const double t1 = centre_.t + dt_;
     const int R = num_rods();
     std::vector<NewtonReport> del(R);
+    frames_saved_ = false;
     start_frames_.resize(R);
     // A failed step leaves q, v, frames and t at the step's start (the runner's failed_step
     // checkpoint is the state then); the DEL may move a rod's frames within the step
@@ -160,6 +187,7 @@ class RodSimulator {
         del[r] = integrator_.solve(b, dt_);
       }
     }
+    frames_saved_ = true;
     for (int r = 0; r < R; ++r) {
       rep.newton.iterations = std::max(rep.newton.iterations, del[r].iterations);
       rep.newton.final_residual = std::max(rep.newton.final_residual, del[r].final_residual);
@@ -197,6 +225,7 @@ class RodSimulator {
     return rep;
   }
 
+ public:
   const State& state() const { return centre_; }
   const Scene& scene() const { return scene_; }
   const Params& params() const { return prm_; }
@@ -221,6 +250,7 @@ class RodSimulator {
     c.header["step"] = steps_;
     c.header["time"] = centre_.t;
     c.header["rod_dofs"] = dofs;
+    c.header["rest_shape"] = rest_digest();
     c.put("q", std::move(q));
     c.put("v", std::move(v));
     c.put("tangent", std::move(tangent));
@@ -249,9 +279,13 @@ class RodSimulator {
                                       bodies_[r].num_vertices()));
       n += nr, edges += bodies_[r].num_vertices() - 1, interior += bodies_[r].num_vertices() - 2;
     }
+    if (h.contains("rest_shape") && h["rest_shape"] != rest_digest())
+      throw ConfigError("checkpoint was written for other rods: the DoF counts match but the rest shapes differ (another shape, length, "
+                        "root, spacing, curl or seed); resume it with the scene that wrote it");
     const auto& q = c.get("q", n);
     const auto& v = c.get("v", n);
     const auto& tangent = c.get("tangent", 3 * edges);
+    require_finite(c, {"q", "v", "tangent", "director", "reference_twist"});
     const auto& director = c.get("director", 3 * edges);
     const auto& twist = c.get("reference_twist", interior);
     size_t iq = 0, ie = 0, it = 0;
@@ -361,6 +395,7 @@ class RodSimulator {
   Contact contact_;
   std::vector<Body> bodies_;
   std::vector<typename Body::Frames> start_frames_;  ///< each rod's frames at the start of the current step
+  bool frames_saved_ = false;  ///< start_frames_ hold this step's start (an exception may come before)
   State centre_;
   double dt_ = 0;
   int steps_ = 0;

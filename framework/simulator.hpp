@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -117,7 +118,19 @@ class Simulator {
     const double dt = scene_.spec.time.dt;
     ++steps_;
     const Snapshot start = snapshot();
-    StepReport rep = advance(dt, scene_.spec.time.max_subdivisions, &start);
+    StepReport rep;
+    try {
+      rep = advance(dt, scene_.spec.time.max_subdivisions, &start);
+    } catch (const std::exception& e) {
+      // A broken invariant or an allocation that failed: a bug or a machine limit, not a
+      // numerical outcome. It is reported as a failed step (stage "internal") whose start
+      // state is restored, so that it replays from a checkpoint like any other.
+      rep = StepReport{};
+      rep.dt = dt;
+      rep.fail("internal", Status::numerical_issue,
+               fmt::format("internal error: {}", dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory (std::bad_alloc)" : e.what()),
+               state_.t);
+    }
     if (!rep.ok()) rollback(start);
     rep.step = steps_;
     rep.dt = dt;
@@ -162,6 +175,9 @@ class Simulator {
     c.header["step"] = steps_;
     c.header["time"] = state_.t;
     c.header["vertices"] = state_.num_vertices();
+    c.header["faces"] = scene_.mesh.num_faces();
+    c.header["topology"] = Digest().add_matrix(scene_.mesh.faces()).hex();
+    c.header["rest_shape"] = Digest().add_matrix(scene_.mesh.rest()).hex();
     Json caveats = Json::array();
     const auto caveat = [&](const auto& policy) {
       if constexpr (requires { { policy.resume_caveat() } -> std::convertible_to<std::string>; })
@@ -188,9 +204,18 @@ class Simulator {
       throw ConfigError("checkpoint header lacks 'step', 'time' or 'vertices'");
     if (h["vertices"].get<long long>() != state_.num_vertices())
       throw ConfigError(fmt::format("checkpoint holds {} vertices; this scene's mesh has {}", h["vertices"].dump(), state_.num_vertices()));
+    // The mesh must be this scene's, not only as large (checkpoints of older builds carry no digests).
+    if (h.contains("topology") && h["topology"] != Digest().add_matrix(scene_.mesh.faces()).hex())
+      throw ConfigError(fmt::format("checkpoint was written for another mesh: its {} faces are not this scene's {} faces (same vertex count, "
+                                    "other triangles); resume it with the scene that wrote it",
+                                    h.value("faces", Json("?")).dump(), scene_.mesh.num_faces()));
+    if (h.contains("rest_shape") && h["rest_shape"] != Digest().add_matrix(scene_.mesh.rest()).hex())
+      throw ConfigError("checkpoint was written for another rest shape: the faces match but the rest positions differ (another mesh file, "
+                        "size, resolution, scale, translate or seed); resume it with the scene that wrote it");
     const long long n = 3LL * state_.num_vertices();
     const auto& x = c.get("x", n);
     const auto& v = c.get("v", n);
+    require_finite(c, {"x", "v"});
     const Snapshot before = snapshot();
     try {
       restore_policies(c);

@@ -89,7 +89,7 @@ TEST_CASE("checkpoint: a missing or foreign or newer or truncated file is refuse
     CHECK(message.find(fault) != std::string::npos);
   };
   const auto none = scratch("none.wckp").string();
-  check(refusal(none), none, "cannot open");
+  check(refusal(none), none, "file not found");
   const auto foreign = write("foreign.wckp", "{\"step\": 1}\n");
   check(refusal(foreign), foreign, "not a weft checkpoint");
   const auto cut_data = write("cut_data.wckp", bytes.substr(0, bytes.size() - 8));
