@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -91,8 +92,7 @@ AblateRow run_one(const std::string& scene_path, const std::vector<std::string>&
   row.combo = std::string(sim->combo());
   const Scene& scene = sim->scene();
   const int spf = scene.spec.time.steps_per_frame();
-  const int frames = scene.spec.time.num_frames();
-  row.steps_planned = spf * frames;  // frame 0 is the initial state
+  row.steps_planned = static_cast<int>(std::min<long long>(scene.spec.time.num_steps(), std::numeric_limits<int>::max()));  // frame 0 is the initial state
   row.stage_seconds.assign(static_cast<int>(Stage::count_), 0.0);
   const double E0 = total_energy(*sim);
   // Energy scale: the largest kinetic energy plus magnitude of every potential term seen
@@ -127,9 +127,9 @@ AblateRow run_one(const std::string& scene_path, const std::vector<std::string>&
       row.status = fmt::format("failed at step {} ({}): {}", r.step, r.failed_stage, r.message);
       break;
     }
-    if (k % spf) continue;
+    if (k % spf && k != row.steps_planned) continue;
     const State& s = sim->state();
-    const int frame = k / spf;
+    const int frame = (k + spf - 1) / spf;  // the last frame may be shorter
     if (own) own->frames.push_back(s.x);
     if (ref && frame < static_cast<int>(ref->frames.size())) {
       const Eigen::VectorXd& xr = ref->frames[frame];

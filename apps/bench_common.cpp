@@ -1,5 +1,7 @@
 #include "apps/bench_common.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -14,6 +16,7 @@
 #endif
 
 #include "framework/build_info.hpp"
+#include "framework/scene.hpp"
 #include "linear/lapack_info.hpp"
 
 #ifndef WEFT_CXX_FLAGS
@@ -40,6 +43,11 @@ std::string csv_field(const std::string& s) {
   }
   q.push_back('"');
   return q;
+}
+
+std::string whole_steps_duration(const std::string& scene, const std::vector<std::string>& ov, double dt, double duration) {
+  const double d = duration > 0 ? duration : load_scene(scene, ov).spec.time.duration;
+  return fmt::format("time.duration={}", static_cast<double>(std::max(1LL, std::llround(d / dt))) * dt);
 }
 
 std::string cpu_model() {

@@ -4,6 +4,7 @@
 /// the source tree is, wall-clock timing and CSV quoting.
 #include <chrono>
 #include <string>
+#include <vector>
 #include <string_view>
 
 #include "framework/params_json.hpp"
@@ -16,6 +17,11 @@ inline double seconds_since(Clock::time_point t0) { return std::chrono::duration
 
 /// The CPU's "model name" from /proc/cpuinfo ("unknown" elsewhere).
 std::string cpu_model();
+
+/// "time.duration=D" with D the scene's duration (after the overrides `ov`; `duration` > 0
+/// instead when given) rounded to a whole number of steps of `dt`, at least one: what a
+/// sweep over dt runs, since a scene refuses a duration that is not whole steps.
+std::string whole_steps_duration(const std::string& scene, const std::vector<std::string>& ov, double dt, double duration = 0);
 /// weft's data (scripts/ for plots and renders, scenes/ for the default scenes): $WEFT_DATA_DIR,
 /// else share/weft beside the binary's bin/ (installed: PREFIX/bin/weft and PREFIX/share/weft;
 /// the build tree links build/<preset>/share/weft to the source's scripts and scenes).

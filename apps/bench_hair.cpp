@@ -381,7 +381,7 @@ int bench_hair(const BenchHairOptions& opt) {
         ov.push_back("combo=" + s);
         ov.push_back(fmt::format("time.dt={}", dt));
         ov.push_back(fmt::format("time.frame_rate={}", 1.0 / dt));  // one step per frame: any dt divides it
-        if (duration > 0) ov.push_back(fmt::format("time.duration={}", std::max(duration, dt)));
+        ov.push_back(whole_steps_duration(scene_path, opt.overrides, dt, duration));
         const Scene scene = load_scene(scene_path, ov);
         const ComboInfo* combo = nullptr;
         for (const auto& c : combos())

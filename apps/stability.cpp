@@ -65,16 +65,16 @@ StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, 
   res.dt = dt;
   res.value = value;
   std::vector<std::string> ov = opt.overrides;
-  ov.push_back(fmt::format("time.dt={}", dt));
-  // dt <= 1/frame_rate makes any dt valid; the scene caps the frame rate (10^4 /s), and no
-  // frame is written here, so steps below 1 ms run at 1000 frames per second.
-  ov.push_back(fmt::format("time.frame_rate={}", std::min(1.0 / dt, 1000.0)));
-  if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
-  if (!combo.empty()) ov.push_back("combo=" + combo);
-  if (!opt.vary_key.empty()) ov.push_back(opt.vary_key + "=" + value);
   const auto start = std::chrono::steady_clock::now();
   std::unique_ptr<AnySimulator> sim;
   try {
+    ov.push_back(whole_steps_duration(opt.scene, opt.overrides, dt, opt.duration));  // the duration on this dt's grid
+    ov.push_back(fmt::format("time.dt={}", dt));
+    // dt <= 1/frame_rate makes any dt valid; the scene caps the frame rate (10^4 /s), and no
+    // frame is written here, so steps below 1 ms run at 1000 frames per second.
+    ov.push_back(fmt::format("time.frame_rate={}", std::min(1.0 / dt, 1000.0)));
+    if (!combo.empty()) ov.push_back("combo=" + combo);
+    if (!opt.vary_key.empty()) ov.push_back(opt.vary_key + "=" + value);
     sim = make_simulator(load_scene(opt.scene, ov));
   } catch (const ConfigError& e) {
     res.outcome = Stability::invalid;

@@ -2,17 +2,85 @@
 
 #include <tiny_obj_loader.h>
 
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "framework/error.hpp"
 #include "framework/writers.hpp"
 
 namespace weft {
 
+namespace {
+
+/// The OBJ statements weft reads, checked line by line before tinyobjloader parses the
+/// file, so that an error names its line: `v` with three finite coordinates, `vt`, and `f`
+/// whose indices (1-based, or negative: relative to the end, `v/vt/vn` forms) exist.
+void check_obj_lines(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(fmt::format("{}: mesh file not readable", path));
+  long long nv = 0, nt = 0, line_no = 0;
+  std::string line;
+  const auto bad = [&](const std::string& what) {
+    return ConfigError(fmt::format("{}:{}: malformed OBJ: {} (line: \"{}\")", path, line_no, what, line.size() > 80 ? line.substr(0, 80) + "..." : line));
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    std::istringstream ss(line);
+    std::string tag;
+    if (!(ss >> tag) || tag[0] == '#') continue;
+    if (tag == "v") {
+      std::string word;
+      for (int c = 0; c < 3; ++c) {
+        if (!(ss >> word)) throw bad("a vertex needs three coordinates");
+        char* end = nullptr;
+        const double x = std::strtod(word.c_str(), &end);
+        if (end == word.c_str() || *end != '\0') throw bad(fmt::format("coordinate '{}' is not a number", word));
+        if (!std::isfinite(x)) throw bad(fmt::format("coordinate '{}' is not finite (valid: |x| < 1.8e308)", word));
+      }
+      ++nv;
+    } else if (tag == "vt") {
+      ++nt;
+    } else if (tag == "f") {
+      std::string word;
+      int corners = 0;
+      while (ss >> word) {
+        ++corners;
+        for (int part = 0; part < 2; ++part) {  // the vertex and the texture index of v/vt/vn
+          const size_t slash = word.find('/');
+          const std::string token = part == 0 ? word.substr(0, slash) : (slash == std::string::npos ? "" : word.substr(slash + 1, word.find('/', slash + 1) - slash - 1));
+          if (part == 1 && token.empty()) break;
+          char* end = nullptr;
+          errno = 0;
+          const long long i = std::strtoll(token.c_str(), &end, 10);
+          const long long n = part == 0 ? nv : nt;
+          const char* what = part == 0 ? "vertex" : "texture coordinate";
+          if (token.empty() || end == token.c_str() || *end != '\0' || errno == ERANGE)
+            throw bad(fmt::format("face corner '{}' is not an index", word));
+          if (i == 0 || i > n || i < -n)
+            throw bad(fmt::format("face corner '{}' references {} {} of the {} defined before this line (valid: 1..{} or -1..-{})", word, what, i,
+                                  n, n, n));
+        }
+      }
+      if (corners < 3) throw bad(fmt::format("a face needs at least three corners, this one has {}", corners));
+    }
+  }
+}
+
+}  // namespace
+
 MeshData read_obj(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw ConfigError(fmt::format("{}: mesh file not found", path));
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("{}: mesh file not found", path));
+  if (!std::filesystem::is_regular_file(status))
+    throw ConfigError(fmt::format("{}: not a regular file (a {}); give an OBJ file", path,
+                                  std::filesystem::is_directory(status) ? "directory" : "FIFO, socket or device"));
+  check_obj_lines(path);
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;
@@ -62,6 +130,15 @@ MeshData read_obj(const std::string& path) {
       }
   }
   return m;
+}
+
+std::string check_extent(const Eigen::MatrixX3d& V) {
+  for (Eigen::Index i = 0; i < V.rows(); ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!(std::abs(V(i, c)) <= max_coordinate))
+        return fmt::format("vertex {} has the coordinate {} = {} m; valid: finite and within {:.0e} m of the origin (meters are the unit)", i,
+                           "xyz"[c], V(i, c), max_coordinate);
+  return {};
 }
 
 void write_obj(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const std::string& comment) {

@@ -15,6 +15,13 @@ namespace weft {
 /// without faces.
 MeshData read_obj(const std::string& path);
 
+/// Coordinates are meters: a vertex beyond this distance from the origin is a unit or file
+/// error (and would overflow the squared lengths and areas of the geometry checks).
+inline constexpr double max_coordinate = 1e6;
+/// "" when every coordinate of V is finite and within max_coordinate; else what is wrong,
+/// naming the first bad vertex (0-based).
+std::string check_extent(const Eigen::MatrixX3d& V);
+
 /// Write vertices (#V*3 stacked) and faces. Writes to `path` + ".tmp" and renames, so a
 /// file is either complete or absent.
 void write_obj(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F,

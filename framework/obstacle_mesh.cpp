@@ -172,7 +172,9 @@ std::shared_ptr<const ObstacleMesh> load_obstacle_mesh(const std::string& path, 
   } catch (const ConfigError& e) {
     throw ConfigError(fmt::format("{}: {}", what, e.what()));
   }
-  auto m = build(d.V * scale, d.F, what);
+  const Eigen::MatrixX3d V = d.V * scale;
+  if (const std::string bad = check_extent(V); !bad.empty()) throw ConfigError(fmt::format("{}: {}", what, bad));
+  auto m = build(V, d.F, what);
   m->source = path;
   return m;
 }

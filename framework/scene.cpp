@@ -7,7 +7,10 @@
 #include <functional>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
+
+#include <unistd.h>
 
 #include "framework/mesh_generators.hpp"
 #include "framework/obj_io.hpp"
@@ -17,6 +20,14 @@ namespace weft {
 Checker ShellMaterial::validate(const std::string& path) const {
   Checker c(path);
   c.require(density > 0, "density", density, "> 0").require(thickness > 0, "thickness", thickness, "> 0");
+  // The stiffnesses the energies use must be finite: k = D / 2 grows with h^3.
+  if (thickness > 0 && (orthotropic() ? youngs_modulus_warp && youngs_modulus_weft : youngs_modulus > 0)) {
+    const double k = bending_k(), stretch = (orthotropic() ? *youngs_modulus_warp : youngs_modulus) * thickness;
+    c.require(std::isfinite(k) && std::isfinite(stretch), "thickness", thickness,
+              fmt::format("a thickness whose stiffnesses are finite (here the stretching stiffness Y h = {:g} N/m and the bending "
+                          "stiffness k = {:g} J overflow)",
+                          stretch, k));
+  }
   if (!orthotropic()) {
     c.require(youngs_modulus > 0, "youngs_modulus", youngs_modulus, "> 0")
         .require(poisson_ratio > -1 && poisson_ratio < 1, "poisson_ratio", poisson_ratio, "in (-1, 1) (2D plane stress)");
@@ -149,7 +160,11 @@ Checker check_rest_states(const Scene& scene) {
 }
 
 int TimeSpec::steps_per_frame() const { return std::max(1, static_cast<int>(std::lround(1.0 / (frame_rate * dt)))); }
-int TimeSpec::num_frames() const { return static_cast<int>(std::floor(duration * frame_rate + 1e-9)); }
+long long TimeSpec::num_steps() const { return std::max(1LL, std::llround(duration / dt)); }
+int TimeSpec::num_frames() const {
+  const long long spf = steps_per_frame();
+  return static_cast<int>((num_steps() + spf - 1) / spf);
+}
 
 Eigen::VectorXd Scene::lumped_masses() const {
   Eigen::VectorXd m = Eigen::VectorXd::Zero(mesh.num_vertices());
@@ -238,12 +253,66 @@ bool is_safe_name(std::string_view name) {
   return true;
 }
 
+// Peak resident size of `weft run` per simulated vertex, measured with GNU time (2026-12-02):
+// the 201 x 201 sheet (40,401 vertices) took 212 MB hanging under SA+PPCG and 224 MB dropped
+// on the box under obstacle constraints (5.5 KB per vertex), 10k vertices 61 MB; the
+// 1000-rod hair ball (30,000 vertices) 27 MB. With a margin: 6 KB and 1 KB per vertex.
+const double SizeEstimate::cloth_bytes_per_vertex = 6000, SizeEstimate::rod_bytes_per_vertex = 1000, SizeEstimate::base_bytes = 32e6;
+
+SizeEstimate estimate_size(const SceneSpec& s) {
+  SizeEstimate e;
+  for (const ClothSpec& cl : s.cloths)
+    if (cl.mesh.source != MeshSource::file) e.cloth_vertices += static_cast<double>(cl.mesh.resolution[0]) * cl.mesh.resolution[1];
+  for (const RodSpec& r : s.rods) e.rod_vertices += static_cast<double>(r.count) * r.vertices;
+  e.bytes = SizeEstimate::base_bytes + e.cloth_vertices * SizeEstimate::cloth_bytes_per_vertex + e.rod_vertices * SizeEstimate::rod_bytes_per_vertex;
+  return e;
+}
+
+double physical_memory_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && size > 0 ? static_cast<double>(pages) * static_cast<double>(size) : 0.0;
+}
+
 namespace {
+
+/// A count of vertices for a message: "25,010,001".
+std::string grouped(double n) {
+  std::string d = fmt::format("{:.0f}", n), out;
+  for (size_t i = 0; i < d.size(); ++i) {
+    if (i > 0 && (d.size() - i) % 3 == 0) out += ',';
+    out += d[i];
+  }
+  return out;
+}
+
+/// Refuse a scene too large for the counters or for this machine's memory, naming the keys
+/// that set its size, before any mesh is built.
+void check_size(const SceneSpec& s, Checker& c) {
+  const SizeEstimate e = estimate_size(s);
+  std::vector<std::string> keys;
+  for (size_t k = 0; k < s.cloths.size(); ++k)
+    if (s.cloths[k].mesh.source != MeshSource::file)
+      keys.push_back(fmt::format("cloths.{}.mesh.resolution = [{}, {}]", k, s.cloths[k].mesh.resolution[0], s.cloths[k].mesh.resolution[1]));
+  for (size_t k = 0; k < s.rods.size(); ++k) keys.push_back(fmt::format("rods.{}.count = {} x vertices = {}", k, s.rods[k].count, s.rods[k].vertices));
+  const std::string from = fmt::format("{}", fmt::join(keys, ", "));
+  const double n = e.cloth_vertices + e.rod_vertices;
+  if (n > SizeEstimate::max_vertices) {
+    c.fail(fmt::format("{}: {} vertices in all; valid: at most {} (the index arrays are 32-bit)", from, grouped(n), grouped(SizeEstimate::max_vertices)));
+    return;
+  }
+  const double ram = physical_memory_bytes();
+  if (ram > 0 && e.bytes > ram)
+    c.fail(fmt::format("{}: {} vertices need about {:.1f} GB of memory (estimate: {:.0f} bytes per cloth vertex, {:.0f} per rod vertex) "
+                       "and this machine has {:.1f} GB; valid: a scene of at most about {} cloth vertices here",
+                       from, grouped(n), e.bytes / 1e9, SizeEstimate::cloth_bytes_per_vertex, SizeEstimate::rod_bytes_per_vertex,
+                       ram / 1e9, grouped(std::floor((ram - SizeEstimate::base_bytes) / SizeEstimate::cloth_bytes_per_vertex))));
+}
 
 void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
   Checker c;
+  check_size(s, c);
   const auto check_name = [&](const std::string& key, const std::string& name) {
-    c.require(is_safe_name(name), key, fmt::format("\"{}\"", name),
+    c.require(is_safe_name(name), key, Json(name).dump(),
               "1-64 characters of A-Z a-z 0-9 _ - . starting with a letter or digit (it names output files)");
   };
   for (size_t k = 0; k < s.cloths.size(); ++k) check_name(fmt::format("cloths.{}.name", k), s.cloths[k].name);
@@ -273,6 +342,24 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
     c.require(s.time.max_subdivisions == 0, "time.max_subdivisions", s.time.max_subdivisions,
               "0 for rod scenes (step subdivision is a cloth failsafe; the rod stability studies count failed steps)");
   c.require(s.time.duration >= s.time.dt, "time.duration", s.time.duration, fmt::format(">= time.dt = {} s", s.time.dt));
+  // Counts: steps per frame, frames and steps must fit the counters (and a run be finite);
+  // the duration must be a whole number of steps, so that the run ends where asked.
+  if (ratio > TimeSpec::max_steps_per_frame)
+    c.fail(fmt::format("time.dt = {} s: {:.3g} steps per frame of {} s; valid: at most {:.0e} steps per frame (time.dt >= {:.3g} s)",
+                       s.time.dt, ratio, frame, static_cast<double>(TimeSpec::max_steps_per_frame),
+                       frame / static_cast<double>(TimeSpec::max_steps_per_frame)));
+  const double steps = s.time.duration / s.time.dt, frames = s.time.duration * s.time.frame_rate;
+  if (frames > TimeSpec::max_frames)
+    c.fail(fmt::format("time.duration = {} s: {:.3g} frames at frame_rate = {} /s; valid: at most {:.0e} frames (time.duration <= {:.6g} s)",
+                       s.time.duration, frames, s.time.frame_rate, static_cast<double>(TimeSpec::max_frames),
+                       static_cast<double>(TimeSpec::max_frames) / s.time.frame_rate));
+  else if (steps > TimeSpec::max_steps)
+    c.fail(fmt::format("time.duration = {} s: {:.3g} steps of time.dt = {} s; valid: at most {:.0e} steps (time.duration <= {:.6g} s)",
+                       s.time.duration, steps, s.time.dt, static_cast<double>(TimeSpec::max_steps),
+                       static_cast<double>(TimeSpec::max_steps) * s.time.dt));
+  else if (steps >= 1 && std::abs(steps - std::round(steps)) > 1e-6 * steps)
+    c.fail(fmt::format("time.duration = {} s is {:.6g} steps of time.dt = {} s; valid: a whole number of steps, e.g. {:.9g} or {:.9g} s",
+                       s.time.duration, steps, s.time.dt, std::floor(steps) * s.time.dt, std::ceil(steps) * s.time.dt));
   for (size_t k = 0; k < s.cloths.size(); ++k) {
     const auto& cl = s.cloths[k];
     const std::string p = fmt::format("cloths.{}", k);
@@ -307,10 +394,32 @@ void validate_spec(const SceneSpec& s, std::vector<std::string>& errors) {
       c.require(o.normal.norm() > 1e-12, p + ".normal", fmt::format("[{}]", fmt::join(o.normal.data(), o.normal.data() + 3, ", ")),
                 "a nonzero vector");
     if (o.shape == ObstacleShape::mesh) c.require(!o.file.empty(), p + ".file", "\"\"", "a path to an OBJ file when shape = mesh");
+    c.require(o.center.cwiseAbs().maxCoeff() <= max_coordinate, p + ".center", fmt::format("[{}]", fmt::join(o.center.data(), o.center.data() + 3, ", ")),
+              fmt::format("within {:.0e} m of the origin", max_coordinate));
+    if (o.shape == ObstacleShape::sphere) c.require(o.radius <= max_coordinate, p + ".radius", o.radius, fmt::format("<= {:.0e} m", max_coordinate));
+    if (o.shape == ObstacleShape::box)
+      c.require(o.half_extents.cwiseAbs().maxCoeff() <= max_coordinate, p + ".half_extents",
+                fmt::format("[{}]", fmt::join(o.half_extents.data(), o.half_extents.data() + 3, ", ")), fmt::format("<= {:.0e} m", max_coordinate));
     c.merge(o.motion.validate(p + ".motion"));
     c.merge(check_obstacle_phases(o, p + ".motion"));
   }
-  for (size_t k = 0; k < s.rods.size(); ++k) c.merge(s.rods[k].motion.validate(fmt::format("rods.{}.motion", k)));
+  for (size_t k = 0; k < s.rods.size(); ++k) {
+    const RodSpec& r = s.rods[k];
+    const std::string p = fmt::format("rods.{}", k);
+    c.merge(r.motion.validate(p + ".motion"));
+    // Lengths in meters, within the extent of a mesh; edges long enough for the rod model.
+    const double edge = r.length / (r.vertices - 1);
+    c.require(r.length <= max_coordinate, p + ".length", r.length, fmt::format("<= {:.0e} m", max_coordinate));
+    c.require(!(r.length <= max_coordinate) || edge >= 1e-9, p + ".length", r.length,
+              fmt::format("rest edges of at least 1 nm: length / (vertices - 1) = {:.3g} m here", edge));
+    c.require(r.material.radius <= max_coordinate, p + ".material.radius", r.material.radius, fmt::format("<= {:.0e} m", max_coordinate));
+    c.require(r.spacing * r.count <= max_coordinate, p + ".spacing", r.spacing,
+              fmt::format("spacing x count <= {:.0e} m (here {:.3g} m)", max_coordinate, r.spacing * r.count));
+    for (const auto& [key, v] : {std::pair{"root", r.root}, std::pair{"sphere_center", r.sphere_center}})
+      c.require(v.cwiseAbs().maxCoeff() <= max_coordinate, p + "." + key, fmt::format("[{}]", fmt::join(v.data(), v.data() + 3, ", ")),
+                fmt::format("within {:.0e} m of the origin", max_coordinate));
+    c.require(r.sphere_radius <= max_coordinate, p + ".sphere_radius", r.sphere_radius, fmt::format("<= {:.0e} m", max_coordinate));
+  }
   errors.insert(errors.end(), c.violations().begin(), c.violations().end());
 }
 
@@ -393,10 +502,24 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
   // Meshes, concatenated.
   std::vector<MeshData> parts;
   for (size_t c = 0; c < scene.spec.cloths.size(); ++c) {
+    const MeshSpec& m = scene.spec.cloths[c].mesh;
+    const std::string key = m.source == MeshSource::file ? fmt::format("cloths.{}.mesh.file = \"{}\"", c, m.file) : fmt::format("cloths.{}.mesh", c);
     try {
-      parts.push_back(make_mesh(scene.spec.cloths[c].mesh, base_dir));
+      parts.push_back(make_mesh(m, base_dir));
+      const MeshData& d = parts.back();
+      if (const std::string bad = check_extent(d.V); !bad.empty())
+        errors.push_back(fmt::format("{}: {} (after mesh.scale and mesh.translate)", key, bad));
+      // A vertex in no face has no mass: it cannot be simulated.
+      std::vector<unsigned char> used(static_cast<size_t>(d.V.rows()), 0);
+      for (Eigen::Index f = 0; f < d.F.rows(); ++f)
+        for (int k = 0; k < 3; ++k)
+          if (d.F(f, k) >= 0 && d.F(f, k) < d.V.rows()) used[static_cast<size_t>(d.F(f, k))] = 1;
+      if (const auto n = std::count(used.begin(), used.end(), 0); n > 0)
+        errors.push_back(fmt::format("{}: {} vertices belong to no face, the first is vertex {} (0-based; line 'v' number {} of the file); "
+                                     "valid: every vertex in a triangle (remove unused vertices)",
+                                     key, n, std::find(used.begin(), used.end(), 0) - used.begin(), std::find(used.begin(), used.end(), 0) - used.begin() + 1));
     } catch (const ConfigError& e) {
-      errors.push_back(fmt::format("cloths.{}.mesh: {}", c, e.what()));
+      errors.push_back(fmt::format("{}: {}", key, e.what()));
     }
   }
   // Mesh obstacles: read and checked once, shared by every copy of the spec.
@@ -430,7 +553,16 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
   if (nv > 0) try {
       scene.mesh = TriangleMesh(V, F);
     } catch (const ConfigError& e) {
-      throw ConfigError(header, {e.what()});
+      // Name the cloth (and its file): the parts are disjoint, so each one's own mesh fails.
+      for (size_t c = 0; c < parts.size(); ++c) try {
+          TriangleMesh own(parts[c].V, parts[c].F);
+        } catch (const ConfigError& part) {
+          const MeshSpec& m = scene.spec.cloths[c].mesh;
+          errors.push_back(fmt::format("cloths.{}.mesh{}: {} (indices 0-based, within the cloth)", c,
+                                       m.source == MeshSource::file ? fmt::format(".file = \"{}\"", m.file) : std::string(), part.what()));
+        }
+      if (errors.empty()) errors.emplace_back(e.what());
+      throw ConfigError(header, errors);
     }
   try {
     scene.rods = build_rods(scene.spec);
@@ -454,6 +586,10 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
       }
       init.V *= m.scale;
       init.V.rowwise() += m.translate.transpose();
+      if (const std::string bad = check_extent(init.V); !bad.empty()) {
+        errors.push_back(fmt::format("cloths.{}.mesh.initial_file = \"{}\": {} (after mesh.scale and mesh.translate)", c, m.initial_file, bad));
+        continue;
+      }
       scene.start.middleRows(scene.cloth_vertex_offset[c], init.V.rows()) = init.V;
     } catch (const ConfigError& e) {
       errors.push_back(fmt::format("cloths.{}.mesh.initial_file: {}", c, e.what()));
@@ -577,13 +713,26 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
   std::ifstream in(path);
   if (!in) throw ConfigError(fmt::format("{}: scene file not readable", path));
   Json doc;
+  // Keys given twice in one object: nlohmann keeps the last silently; a scene is refused.
+  std::vector<std::set<std::string>> open_keys;
+  std::vector<std::string> duplicates;
+  const Json::parser_callback_t keys = [&](int, Json::parse_event_t event, Json& parsed) {
+    if (event == Json::parse_event_t::object_start) open_keys.emplace_back();
+    else if (event == Json::parse_event_t::object_end && !open_keys.empty()) open_keys.pop_back();
+    else if (event == Json::parse_event_t::key && !open_keys.empty() && !open_keys.back().insert(parsed.get<std::string>()).second &&
+             duplicates.size() < 10)
+      duplicates.push_back(fmt::format("key \"{}\" is given twice in the same object (the scene must say what it means once)", parsed.get<std::string>()));
+    return true;
+  };
   try {
-    doc = Json::parse(in, nullptr, true, /*ignore_comments=*/true);
+    doc = Json::parse(in, keys, true, /*ignore_comments=*/true);
   } catch (const Json::parse_error& e) {
     throw ConfigError(fmt::format("{}: malformed JSON: {}", path, e.what()));
   } catch (const Json::exception& e) {  // out_of_range: a number beyond a double
     throw ConfigError(fmt::format("{}: a number is not finite (valid: a double, |x| < 1.8e308): {}", path, e.what()));
   }
+  if (!duplicates.empty()) throw ConfigError(fmt::format("{}: invalid scene", path), duplicates);
+  if (!doc.is_object()) throw ConfigError(fmt::format("{}: invalid scene", path), {"the document must be a JSON object"});
   std::vector<std::string> errors;
   for (const auto& o : overrides) {
     try {
@@ -594,7 +743,11 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
   }
   if (!errors.empty()) throw ConfigError(fmt::format("{}: invalid overrides", path), errors);
   const auto dir = std::filesystem::path(path).parent_path().string();
-  return build_scene(doc, dir.empty() ? "." : dir, path);
+  // A key set on the command line is named as such: the scene file does not hold it.
+  const std::string origin = overrides.empty() ? path : fmt::format("{} with the overrides {}", path, fmt::join(overrides, " "));
+  Scene scene = build_scene(doc, dir.empty() ? "." : dir, origin);
+  scene.path = path;
+  return scene;
 }
 
 }  // namespace weft

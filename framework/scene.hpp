@@ -6,6 +6,7 @@
 /// validated completely before any work starts. All values are SI inside weft.
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -282,11 +283,21 @@ struct TimeSpec {
   double frame_rate = 24.0;      ///< [1/s] frames written per simulated second
   int max_subdivisions = 0;      ///< cloth: a failed step is retried as 2 half steps, recursively, this deep (0: it fails)
   int steps_per_frame() const;
+  /// Steps of the run: duration / dt, a whole number (validated).
+  long long num_steps() const;
+  /// Frames after the initial one: the last frame ends at t = duration, so it is shorter
+  /// than 1 / frame_rate when the duration is not a whole number of frames.
   int num_frames() const;
+  /// The time of frame k.
+  double frame_time(int k) const { return static_cast<double>(std::min<long long>(static_cast<long long>(k) * steps_per_frame(), num_steps())) * dt; }
+  static constexpr long long max_steps_per_frame = 10'000'000, max_frames = 10'000'000, max_steps = 1'000'000'000'000;
   template <class V>
   void visit(V& v) {
     v.field("dt", dt, {Unit::time, Range::open_closed(0, 1), "time step; must divide the frame interval"});
-    v.field("duration", duration, {Unit::time, Range::gt(0), "simulated time"});
+    v.field("duration", duration,
+            {Unit::time, Range::gt(0),
+             "simulated time: a whole number of steps; when it is not a whole number of frames the last frame is shorter and "
+             "holds the state at t = duration"});
     v.field("frame_rate", frame_rate, {Unit::frequency, Range::open_closed(0, 10000), "frames per simulated second"});
     v.field("max_subdivisions", max_subdivisions,
             {Unit::none, Range::closed(0, 10),
@@ -354,6 +365,20 @@ std::string obstacle_output_name(const SceneSpec& s, size_t obstacle);
 /// A-Z a-z 0-9 _ - . starting with a letter or digit (no path separator, no "..", nothing XML
 /// must escape).
 bool is_safe_name(std::string_view name);
+
+/// What a scene will need before its meshes are built: the vertices of its generated
+/// sheets and rod families (OBJ meshes are bounded by their files), and the memory a run of
+/// that many vertices takes, from peak resident sizes measured with the default solvers.
+struct SizeEstimate {
+  double cloth_vertices = 0, rod_vertices = 0;
+  double bytes = 0;
+  static const double cloth_bytes_per_vertex, rod_bytes_per_vertex, base_bytes;  // measured: framework/scene.cpp
+  /// Simulated vertices index arrays of int (4 DoFs per rod vertex, 9 per Hessian block).
+  static constexpr double max_vertices = 200'000'000;
+};
+SizeEstimate estimate_size(const SceneSpec& s);
+/// The machine's physical memory [bytes] (0: unknown).
+double physical_memory_bytes();
 
 struct Scene {
   SceneSpec spec;

@@ -106,7 +106,7 @@ TEST_SUITE("apps") {
     const Result r = run_weft(fmt::format("run {} --out {}", path, (dir / "out").string()));
     CAPTURE(r.output);
     CHECK(r.code == 2);
-    CHECK(r.output.find("bad.obj: malformed OBJ") != std::string::npos);
+    CHECK(r.output.find("bad.obj:3: malformed OBJ: face corner '7' references vertex 7 of the 2 defined before this line") != std::string::npos);
     CHECK_FALSE(fs::exists(dir / "out"));
   }
 

@@ -59,7 +59,9 @@ TEST_SUITE("framework") {
     CHECK(st.x.size() == 75);
     CHECK(st.v.isZero());
     CHECK(s.spec.time.steps_per_frame() == 4);
-    CHECK(s.spec.time.num_frames() == 2);
+    CHECK(s.spec.time.num_steps() == 10);
+    CHECK(s.spec.time.num_frames() == 3);  // 0.04 and 0.08 s, and a shorter last frame at 0.1 s
+    CHECK(s.spec.time.frame_time(3) == doctest::Approx(0.1));
   }
 
   TEST_CASE("scene: every problem is reported at once / with file and key path") {
