@@ -45,7 +45,8 @@ int main(int argc, char** argv) {
   cmd_run->add_option("scene", run.scene, "scene file (JSON)")->required();
   cmd_run->add_option("overrides", run.overrides,
                       "key=value overrides; dotted keys mirror the scene tree, e.g. time.dt=0.002 integrator.max_iterations=20");
-  cmd_run->add_option("-o,--out", run.out_dir, "output directory (default: out)");
+  cmd_run->add_option("-o,--out", run.out_dir, "output directory (default: out)")
+      ->check([](const std::string& v) { return v.empty() ? std::string("an empty path; give a directory (default: out)") : std::string(); });
   bool bar = false, plain = false;
   cmd_run->add_flag("--progress", bar, "always draw a progress bar");
   cmd_run->add_flag("--plain", plain, "plain progress lines (default when stderr is not a terminal)");

@@ -5,10 +5,10 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
-#include <atomic>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -19,6 +19,7 @@
 
 #include "framework/build_info.hpp"
 #include "framework/checkpoint.hpp"
+#include "framework/interrupt.hpp"
 #include "framework/obj_io.hpp"
 #include "framework/reports.hpp"
 #include "framework/writers.hpp"
@@ -28,8 +29,7 @@
 namespace weft::app {
 namespace {
 
-std::atomic<int> g_signal{0};
-extern "C" void on_signal(int s) { g_signal.store(s); }
+extern "C" void on_signal(int s) { request_stop(s); }
 
 namespace fs = std::filesystem;
 
@@ -63,14 +63,20 @@ std::vector<std::string> clear_outputs_after(const fs::path& dir, int frame, lon
 // time is not a multiple of time.dt or lies at or after the scene's end.
 long long resume_step(const Checkpoint& c, const Scene& scene, const std::string& path) {
   const auto& time = scene.spec.time;
+  const std::string kind = scene.spec.rods.empty() ? "cloth" : "rods";
+  if (c.header.value("kind", "") != kind)
+    throw ConfigError(fmt::format("--resume {}: checkpoint holds a '{}' state; this combination simulates {}", path,
+                                  c.header.value("kind", "?"), kind == "rods" ? "rods" : "cloth"));
   if (!c.header.contains("time") || !c.header["time"].is_number()) throw ConfigError(fmt::format("--resume {}: header has no 'time'", path));
   const double t = c.header["time"].get<double>();
+  if (!(t >= 0) || !(t / time.dt < 1e15))
+    throw ConfigError(fmt::format("--resume {}: its time t = {} s is not a time of a run (valid: 0 <= t < time.duration): the file is damaged", path, t));
   const long long k = std::llround(t / time.dt);
   if (std::abs(static_cast<double>(k) * time.dt - t) > 1e-9 * std::max(t, time.dt))
     throw ConfigError(fmt::format("--resume {}: its time t = {} s is not a multiple of time.dt = {} s (valid: a time.dt that divides t, "
                                   "e.g. the dt of the run that wrote it)",
                                   path, t, time.dt));
-  const long long total = static_cast<long long>(time.num_frames()) * time.steps_per_frame();
+  const long long total = time.num_steps();
   if (k >= total)
     throw ConfigError(fmt::format("--resume {}: its time t = {} s is at or after the scene's end, t = {} s ({} frames of {} s for "
                                   "time.duration = {} s): nothing to run; override time.duration to continue",
@@ -154,8 +160,34 @@ class FrameWriter {
     if (!spec.rods.empty()) add(fmt::format("rods_{:04d}", k), static_cast<int>(faces_.size()));
     for (size_t o = 0; o < spec.obstacles.size(); ++o) add(fmt::format("{}_{:04d}", obstacle_output_name(spec, o), k), parts + static_cast<int>(o));
   }
-  /// Write frame `k` of the current state; returns the number of files written.
+  /// Write frame `k` of the current state; returns the number of files written. When a
+  /// file cannot be written the frame's other files are removed again (a frame is on disk
+  /// whole or not at all) and the error is rethrown.
   int write(int k, const State& s) {
+    written_.clear();
+    try {
+      return write_files(k, s);
+    } catch (...) {
+      std::error_code ec;
+      for (const std::string& f : written_) fs::remove(f, ec);
+      throw;
+    }
+  }
+
+ private:
+  void write_obj(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const std::string& comment = {}) {
+    weft::write_obj(path, x, F, comment), written_.push_back(path);
+  }
+  void write_vtp(const std::string& path, const Eigen::VectorXd& x, const Eigen::MatrixX3i& F, const Eigen::VectorXd* v = nullptr) {
+    weft::write_vtp(path, x, F, v), written_.push_back(path);
+  }
+  void write_polylines_obj(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first, const std::string& comment) {
+    weft::write_polylines_obj(path, x, first, comment), written_.push_back(path);
+  }
+  void write_polylines_vtp(const std::string& path, const Eigen::VectorXd& x, const std::vector<int>& first, const Eigen::VectorXd* v) {
+    weft::write_polylines_vtp(path, x, first, v), written_.push_back(path);
+  }
+  int write_files(int k, const State& s) {
     int files = 0;
     const auto& spec = scene_.spec;
     for (size_t c = 0; c < faces_.size(); ++c) {
@@ -191,9 +223,9 @@ class FrameWriter {
     return files;
   }
 
- private:
   const Scene& scene_;
   fs::path dir_;
+  std::vector<std::string> written_;  ///< the files of the frame being written
   std::vector<Eigen::MatrixX3i> faces_;
   std::vector<std::string> names_;
   std::optional<PvdSeries> pvd_;
@@ -263,6 +295,10 @@ int run_scene(const RunOptions& opt) {
   } catch (const ConfigError& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return exit_config;
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr, "error: {}: not enough memory to build this scene and its solver (std::bad_alloc); reduce the mesh resolution "
+               "or the rod count\n", opt.scene);
+    return exit_config;
   }
   const Scene& scene = sim->scene();
 #ifdef _OPENMP
@@ -277,6 +313,14 @@ int run_scene(const RunOptions& opt) {
   std::vector<std::string> kept_stats;  // on resume: the lines of the steps before the checkpoint
   try {
     fs::create_directories(dir);
+    {  // a directory that exists but cannot be written fails here, before any file is touched
+      const fs::path probe = dir / ".weft-write-test";
+      errno = 0;
+      std::ofstream test(probe);
+      if (!test) throw fs::filesystem_error("cannot create a file in it", probe, std::error_code(errno ? errno : EACCES, std::generic_category()));
+      test.close();
+      fs::remove(probe);
+    }
     if (resumed) {
       kept_stats = clear_outputs_after(dir, frame0, step0);
     } else {
@@ -288,27 +332,76 @@ int run_scene(const RunOptions& opt) {
   }
 
   // 2. Effective scene and parameters, for reproduction.
-  std::ifstream in(opt.scene);
-  Json effective = Json::parse(in, nullptr, true, true);
-  for (const auto& o : opt.overrides) apply_override(effective, o);
-  const Json params = sim->params();
-  for (const auto& [k, v] : params.items()) effective[k] = v;
-  write_json_file((dir / "scene.json").string(), effective);
+  Json effective;
+  {
+    std::ifstream in(opt.scene);
+    effective = Json::parse(in, nullptr, true, true);
+    for (const auto& o : opt.overrides) apply_override(effective, o);
+    const Json params = sim->params();
+    for (const auto& [k, v] : params.items()) effective[k] = v;
+  }
 
-  g_signal.store(0);
+  clear_stop();
   auto old_int = std::signal(SIGINT, on_signal);
   auto old_term = std::signal(SIGTERM, on_signal);
 
-  FrameWriter writer(scene, dir);
-  std::optional<StatsWriter> stats;
-  if (scene.spec.output.stats) {
-    stats.emplace((dir / "stats.jsonl").string());
-    for (const auto& line : kept_stats) stats->write_line(line);
-  }
-  Progress progress(frames - frame0, opt.progress, opt.quiet);
+  int files = 0, frames_written = 0, steps = 0;
+  long newton_total = 0, linear_total = 0;
+  int newton_max = 0;
+  StageTimes stage_total;
+  std::string status = "completed";
+  Json failure;
+  int code = exit_ok;
+  const long long total = time.num_steps();
+  // A file that cannot be written (a full disk, a directory made read-only): the run stops
+  // with exit 3; the frames and statistics lines written before it stay complete.
+  const auto output_failed = [&](const std::exception& e, long long after_step) {
+    status = "failed";
+    failure = {{"stage", "output"}, {"status", "output_error"}, {"after_step", after_step}, {"time", sim->state().t}, {"reason", e.what()}};
+    code = exit_failed;
+    fmt::print(stderr, "\nerror: writing the output after step {} failed: {}; the frames and statistics written before are intact\n",
+               after_step, e.what());
+  };
+  const auto save = [&](const Checkpoint& c, const char* name) {
+    Checkpoint k = c;
+    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"lapack", linear::lapack_library()}, {"build", build_commit()}};
+    write_checkpoint((dir / name).string(), k);
+    return std::string(name);
+  };
+  // The simulator's state as a checkpoint of the start of step s (the simulator counted a
+  // failed or interrupted step, and put its state back to the step's start); none when the
+  // clock moved, i.e. the state is not that start.
   const bool checkpoints = sim->checkpoint_unsupported().empty();
+  const auto start_of = [&](long long s) {
+    std::optional<Checkpoint> c;
+    if (!checkpoints) return c;
+    c = sim->checkpoint();
+    c->header["step"] = s - 1;
+    if (std::abs(c->header["time"].get<double>() - static_cast<double>(s - 1) * time.dt) > 1e-9 * std::max(1.0, static_cast<double>(s)) * time.dt)
+      c.reset();
+    return c;
+  };
 
-  if (!opt.quiet) {
+  std::optional<FrameWriter> writer;
+  std::optional<StatsWriter> stats;
+  Progress progress(frames - frame0, opt.progress, opt.quiet);
+  try {
+    write_json_file((dir / "scene.json").string(), effective);
+    writer.emplace(scene, dir);
+    if (scene.spec.output.stats) {
+      stats.emplace((dir / "stats.jsonl").string());
+      for (const auto& line : kept_stats) stats->write_line(line);
+    }
+    for (int k = 0; k < frame0; ++k) writer->adopt(k, time.frame_time(k));  // resumed: frames on disk stay in the .pvd
+    if (step0 % spf == 0)
+      files += writer->write(frame0, sim->state()), ++frames_written;
+    else
+      writer->adopt(frame0, time.frame_time(frame0));
+  } catch (const std::exception& e) {
+    output_failed(e, step0);
+  }
+
+  if (!opt.quiet && code == exit_ok) {
     if (scene.spec.rods.empty())
       spdlog::info("{}: {} vertices, {} faces, {} hinges; combo {}; dt = {} s, {} steps/frame, {} frames", opt.scene,
                    scene.mesh.num_vertices(), scene.mesh.num_faces(), scene.mesh.num_hinges(), sim->combo(), time.dt, spf, frames);
@@ -323,40 +416,39 @@ int run_scene(const RunOptions& opt) {
     for (const Json& why : resumed->header["resume_caveats"])  // the run goes on, but not to the bit
       spdlog::warn("the resumed run will not repeat the uninterrupted one to the bit: {}", why.is_string() ? why.get<std::string>() : why.dump());
 
-  int files = 0, frames_written = 0, steps = 0;
-  for (int k = 0; k < frame0; ++k) writer.adopt(k, static_cast<double>(k) * spf * time.dt);  // resumed: frames on disk stay in the .pvd
-  if (step0 % spf == 0)
-    files += writer.write(frame0, sim->state()), ++frames_written;
-  else
-    writer.adopt(frame0, static_cast<double>(frame0) * spf * time.dt);
-  long newton_total = 0, linear_total = 0;
-  int newton_max = 0;
-  StageTimes stage_total;
-  std::string status = "completed";
-  Json failure;
-  int code = exit_ok;
-  const auto save = [&](const Checkpoint& c, const char* name) {
-    Checkpoint k = c;
-    k.header["run"] = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"lapack", linear::lapack_library()}, {"build", build_commit()}};
-    write_checkpoint((dir / name).string(), k);
-    return std::string(name);
+  const auto signal_name = [](int sig) { return sig == SIGINT ? std::string("SIGINT") : sig == SIGTERM ? std::string("SIGTERM") : std::to_string(sig); };
+  // A signal, between two steps or inside one (the step then stopped and put its state
+  // back to its start): the state at the start of step s is kept in checkpoint.wckp.
+  const auto interrupt = [&](long long s, int sig) {
+    status = "interrupted";
+    failure = {{"signal", signal_name(sig)}, {"after_step", s - 1}, {"time", sim->state().t}};
+    code = 128 + sig;
+    try {
+      if (const auto c = start_of(s)) failure["checkpoint"] = save(*c, "checkpoint.wckp");
+    } catch (const std::exception& e) {
+      failure["checkpoint_error"] = e.what();
+      fmt::print(stderr, "\nerror: the checkpoint could not be written: {}\n", e.what());
+    }
   };
-  const long long total = static_cast<long long>(frames) * spf;
-  for (long long s = step0 + 1; s <= total; ++s) {
-    if (const int sig = g_signal.load()) {
+  for (long long s = step0 + 1; code == exit_ok && s <= total; ++s) {
+    if (const int sig = stop_requested()) {  // between two steps: the state is that of step s - 1's end
       status = "interrupted";
-      failure = {{"signal", sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : std::to_string(sig)},
-                 {"after_step", s - 1}, {"time", sim->state().t}};
-      if (checkpoints) failure["checkpoint"] = save(sim->checkpoint(), "checkpoint.wckp");
+      failure = {{"signal", signal_name(sig)}, {"after_step", s - 1}, {"time", sim->state().t}};
       code = 128 + sig;
+      try {
+        if (checkpoints) failure["checkpoint"] = save(sim->checkpoint(), "checkpoint.wckp");
+      } catch (const std::exception& e) {
+        failure["checkpoint_error"] = e.what();
+        fmt::print(stderr, "\nerror: the checkpoint could not be written: {}\n", e.what());
+      }
       break;
     }
     StepReport rep;
     try {
       rep = sim->step();
     } catch (const std::exception& e) {
-      // A policy's invariant broke (a bug, not an input error): report it like any failed
-      // step so that every frame and statistic written so far stays intact.
+      // The simulators report their own internal errors as failed steps; this catches what
+      // escapes a wrapper. The state may then be anywhere: start_of() checks the clock.
       rep.step = static_cast<int>(s);
       rep.time = sim->state().t + time.dt;
       rep.dt = time.dt;
@@ -364,30 +456,36 @@ int run_scene(const RunOptions& opt) {
       rep.failed_stage = "internal";
       rep.message = fmt::format("internal error: {}", e.what());
     }
+    if (rep.status == Status::interrupted) {
+      interrupt(s, std::max(1, stop_requested()));
+      break;
+    }
+    if (rep.ok() && !std::isfinite(rep.newton.final_residual))
+      rep.fail("integrator", Status::numerical_issue, "the step ended with a non-finite residual", rep.time - rep.dt);
     ++steps;
     newton_total += rep.newton.iterations;
     newton_max = std::max(newton_max, rep.newton.iterations);
     linear_total += rep.linear.iterations;
-    {
+    try {
       ScopedTimer t(rep.times, Stage::output);
       if (stats) stats->write(to_json(rep));
+    } catch (const std::exception& e) {
+      output_failed(e, rep.ok() ? s : s - 1);
     }
     stage_total += rep.times;
     if (!rep.ok()) {
       status = "failed";
       failure = {{"step", rep.step}, {"time", rep.time}, {"stage", rep.failed_stage},
                  {"status", to_string(rep.status)}, {"reason", rep.message}};
-      // A rod step that fails returns before it moves the rods or the clock (q, v, frames and
-      // t change only at its end), so the state now is the step's start: no copy is kept
-      // before every step. An internal error may have left it anywhere: no checkpoint then.
-      std::optional<Checkpoint> before;
-      if (checkpoints && rep.failed_stage != "internal") {
-        before = sim->checkpoint();
-        before->header["step"] = s - 1;  // the simulator counted the failed step
-        if (std::abs(before->header["time"].get<double>() - static_cast<double>(s - 1) * time.dt) > 1e-9 * std::max(1.0, static_cast<double>(s)) * time.dt)
-          before.reset();  // the clock moved: not the step's start
+      // A failed step leaves the state at its start (the simulators restore it, internal
+      // errors included), so the step replays from a checkpoint of it.
+      std::optional<Checkpoint> before = start_of(s);
+      try {
+        if (before) failure["checkpoint"] = save(*before, "failed_step.wckp");
+      } catch (const std::exception& e) {
+        before.reset();
+        failure["checkpoint_error"] = e.what();
       }
-      if (before) failure["checkpoint"] = save(*before, "failed_step.wckp");
       progress.finish_line();
       fmt::print(stderr, "error: step {} (t = {} s) failed in stage '{}': {}: {}\n", rep.step, rep.time, rep.failed_stage,
                  to_string(rep.status), rep.message);
@@ -396,20 +494,30 @@ int run_scene(const RunOptions& opt) {
         for (const auto& o : opt.overrides) command += " " + o;
         const std::string file = (dir / "failed_step.wckp").string();
         fmt::print(stderr, "the state at the start of step {} is in {}; `{} --resume {} -o OTHER_DIR` replays it\n", rep.step, file, command, file);
+      } else if (failure.contains("checkpoint_error")) {
+        fmt::print(stderr, "the state at the start of step {} could not be saved: {}\n", rep.step, failure["checkpoint_error"].get<std::string>());
+      } else if (!checkpoints) {
+        fmt::print(stderr, "this combination does not write checkpoints ({}): no replay file\n", sim->checkpoint_unsupported());
       }
       code = exit_failed;
       break;
     }
-    if (s % spf != 0) continue;
-    const int f = static_cast<int>(s / spf);
-    if (f % every == 0 || f == frames) {
-      ScopedTimer t(stage_total, Stage::output);
-      files += writer.write(f, sim->state());
-      ++frames_written;
-    }
-    if (opt.checkpoint_every > 0 && (f % opt.checkpoint_every == 0 || f == frames)) {
-      ScopedTimer t(stage_total, Stage::output);
-      save(sim->checkpoint(), "checkpoint.wckp");
+    if (code != exit_ok) break;  // the statistics could not be written
+    if (s % spf != 0 && s != total) continue;
+    const int f = static_cast<int>((s + spf - 1) / spf);  // the last frame may be shorter
+    try {
+      if (f % every == 0 || f == frames) {
+        ScopedTimer t(stage_total, Stage::output);
+        files += writer->write(f, sim->state());
+        ++frames_written;
+      }
+      if (opt.checkpoint_every > 0 && (f % opt.checkpoint_every == 0 || f == frames)) {
+        ScopedTimer t(stage_total, Stage::output);
+        save(sim->checkpoint(), "checkpoint.wckp");
+      }
+    } catch (const std::exception& e) {
+      output_failed(e, s);
+      break;
     }
     progress.update(f - frame0, sim->state().t, steps);
   }
@@ -419,7 +527,14 @@ int run_scene(const RunOptions& opt) {
     progress.finish_line();
     fmt::print(stderr, "interrupted by {} after {} steps; output up to t = {} s is intact{}\n", failure["signal"].get<std::string>(),
                step0 + steps, sim->state().t,
-               checkpoints ? fmt::format("; `--resume {}` continues", (dir / "checkpoint.wckp").string()) : std::string());
+               failure.contains("checkpoint") ? fmt::format("; `--resume {}` continues", (dir / "checkpoint.wckp").string()) : std::string());
+  }
+  // Success means the time asked for was simulated (a guard: the loop above runs to it).
+  if (code == exit_ok && std::abs(sim->state().t - time.duration) > 1e-6 * time.duration) {
+    status = "failed";
+    failure = {{"stage", "internal"}, {"reason", fmt::format("the run ended at t = {} s, not at time.duration = {} s", sim->state().t, time.duration)}};
+    code = exit_failed;
+    fmt::print(stderr, "error: {}\n", failure["reason"].get<std::string>());
   }
 
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -457,7 +572,12 @@ int run_scene(const RunOptions& opt) {
   if (resumed)
     summary["resumed_from"] = {{"checkpoint", opt.resume}, {"step", step0}, {"time", resumed->header["time"]},
                                {"combo", resumed->header.value("combo", "?")}, {"steps_run", steps}};
-  write_json_file((dir / "summary.json").string(), summary);
+  try {
+    write_json_file((dir / "summary.json").string(), summary);
+  } catch (const std::exception& ex) {
+    fmt::print(stderr, "error: the summary could not be written: {}\n", ex.what());
+    if (code == exit_ok) code = exit_failed;
+  }
   if (!opt.quiet && code == exit_ok)
     spdlog::info("done: {} steps in {:.2f} s ({:.2f} ms/step), Newton {:.2f}/step (max {}), output in {}", steps, wall,
                  1e3 * stage_total.total() / std::max(steps, 1), double(newton_total) / std::max(steps, 1), newton_max, dir.string());

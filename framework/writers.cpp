@@ -2,15 +2,22 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
 namespace weft {
 
+namespace {
+std::string os_reason() { return errno ? std::strerror(errno) : "I/O error"; }
+}  // namespace
+
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
+  errno = 0;
   out_.open(tmp_, std::ios::out | std::ios::trunc);
-  if (!out_) throw std::runtime_error(fmt::format("cannot write {}", tmp_));
+  if (!out_) throw std::runtime_error(fmt::format("cannot write {}: {}", tmp_, os_reason()));
   out_.precision(17);
 }
 
@@ -23,11 +30,15 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::commit() {
+  errno = 0;
   out_.flush();
   const bool ok = static_cast<bool>(out_);
+  const std::string why = os_reason();
   out_.close();
-  if (!ok) throw std::runtime_error(fmt::format("error while writing {}", tmp_));
-  std::filesystem::rename(tmp_, path_);
+  if (!ok || !out_) throw std::runtime_error(fmt::format("error while writing {}: {}", tmp_, ok ? os_reason() : why));
+  std::error_code ec;
+  std::filesystem::rename(tmp_, path_, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot rename {} to {}: {}", tmp_, path_, ec.message()));
   committed_ = true;
 }
 
@@ -106,15 +117,28 @@ void PvdSeries::add(double time, const std::string& file, int part) {
   f.commit();
 }
 
-StatsWriter::StatsWriter(const std::string& path) : out_(path, std::ios::out | std::ios::trunc) {
-  if (!out_) throw std::runtime_error(fmt::format("cannot write {}", path));
+StatsWriter::StatsWriter(const std::string& path) : path_(path) {
+  errno = 0;
+  out_.open(path, std::ios::out | std::ios::trunc);
+  if (!out_) throw std::runtime_error(fmt::format("cannot write {}: {}", path, os_reason()));
 }
 
 void StatsWriter::write(const Json& line) { write_line(line.dump()); }
 
 void StatsWriter::write_line(const std::string& line) {
+  if (!out_.is_open()) throw std::runtime_error(fmt::format("{} was closed by an earlier write error", path_));
+  errno = 0;
   out_ << line << '\n';
   out_.flush();
+  if (out_) {
+    complete_ += line.size() + 1;
+    return;
+  }
+  const std::string why = os_reason();
+  out_.close();
+  std::error_code ec;
+  std::filesystem::resize_file(path_, complete_, ec);  // keep only the complete lines
+  throw std::runtime_error(fmt::format("error while writing {}: {}", path_, why));
 }
 
 }  // namespace weft

@@ -5,6 +5,7 @@
 /// exactly the frames on disk; statistics are JSON lines flushed one step at a time.
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -56,7 +57,9 @@ class PvdSeries {
   std::vector<Entry> entries_;
 };
 
-/// Per-step statistics, one JSON object per line, flushed after every line.
+/// Per-step statistics, one JSON object per line, flushed after every line. A line that
+/// cannot be written whole (a full disk) is cut off the file again, so that the file ends
+/// with the last complete line, and std::runtime_error says why.
 class StatsWriter {
  public:
   explicit StatsWriter(const std::string& path);
@@ -65,7 +68,9 @@ class StatsWriter {
   void write_line(const std::string& line);
 
  private:
+  std::string path_;
   std::ofstream out_;
+  std::uintmax_t complete_ = 0;  ///< bytes of complete lines written
 };
 
 }  // namespace weft

@@ -202,16 +202,17 @@ TEST_SUITE("apps") {
     };
     refused(fmt::format("run {} --checkpoint-every -1", whip), "--checkpoint-every -1: must be a number of frames >= 1 (0: none)");
     refused(fmt::format("run {} --resume {}", whip, whip), "not a weft checkpoint");
-    refused(fmt::format("run {} --resume {}", whip, (dir / "none.wckp").string()), "cannot open the file");
+    refused(fmt::format("run {} --resume {}", whip, (dir / "none.wckp").string()), "file not found");
     // A checkpoint at the scene's end, and one of other rods.
     const Result end = run_weft(fmt::format("run {} time.duration=0.04 -q --checkpoint-every 1 -o {}", whip, (dir / "end").string()));
     REQUIRE(end.code == 0);
     const std::string at_end = (dir / "end" / "checkpoint.wckp").string();
     refused(fmt::format("run {} time.duration=0.04 --resume {}", whip, at_end), "at or after the scene's end, t = 0.04 s (2 frames of 0.02 s");
-    // The scene ends on its last whole frame: 0.05 s of 0.02 s frames ends at 0.04 s, and the
-    // message says so rather than only quoting time.duration.
-    refused(fmt::format("run {} time.duration=0.05 --resume {}", whip, at_end),
-            "at or after the scene's end, t = 0.04 s (2 frames of 0.02 s for time.duration = 0.05 s)");
+    // The scene ends at time.duration, also inside a frame: 0.05 s of 0.02 s frames resumes
+    // from 0.04 s for its last 10 steps.
+    const Result longer = run_weft(fmt::format("run {} time.duration=0.05 -q --resume {} -o {}", whip, at_end, (dir / "longer").string()));
+    CHECK_MESSAGE(longer.code == 0, longer.output);
+    CHECK(json::parse(slurp(dir / "longer" / "summary.json"))["resumed_from"]["steps_run"] == 10);
     refused(fmt::format("run {} rods.0.vertices=40 --resume {}", whip, at_end), "checkpoint rod 0 has 119 DoFs; this scene's rod 0 has 159");
     const std::string cloth = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
     refused(fmt::format("run {} time.dt=0.01 time.frame_rate=25 --resume {}", cloth, at_end), "checkpoint holds a 'rods' state; this combination simulates cloth");
