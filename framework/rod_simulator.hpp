@@ -193,6 +193,8 @@ class RodSimulator {
       rep.newton.final_residual = std::max(rep.newton.final_residual, del[r].final_residual);
       if (del[r].status != Status::success)
         return fail("integrator", del[r].status, fmt::format("rod {}: {}", r, del[r].message));
+      if (!std::isfinite(del[r].final_residual))  // e.g. a density of 1e300: a "converged" solve of overflowing forces
+        return fail("integrator", Status::numerical_issue, fmt::format("rod {}: the DEL solve ended with a non-finite residual", r));
     }
     rep.newton.method = del.empty() ? "" : del[0].method;
     rep.newton.stop_reason = "every rod converged (iterations: the largest over the rods)";

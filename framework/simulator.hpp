@@ -305,6 +305,8 @@ class Simulator {
     rep.linear = r.linear;
     rep.times += r.times;
     if (r.status != Status::success) return rep.fail(r.failed_stage, r.status, r.message, state_.t);
+    if (!std::isfinite(r.newton.final_residual))
+      return rep.fail("integrator", Status::numerical_issue, "the step's solve ended with a non-finite residual", state_.t);
     if constexpr (!InertContact<Contact>) {
       ScopedTimer t(rep.times, Stage::contact);
       rep.contact.merge_end(contact_.end_step(state_, dt));
