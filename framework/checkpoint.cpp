@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "framework/error.hpp"
+#include "framework/files.hpp"
 #include "framework/writers.hpp"
 
 namespace weft {
@@ -82,11 +83,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
 }
 
 Checkpoint read_checkpoint(const std::string& path) {
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("checkpoint {}: file not found", path));
-  if (!std::filesystem::is_regular_file(status))
-    throw ConfigError(fmt::format("checkpoint {}: not a regular file (a {})", path, std::filesystem::is_directory(status) ? "directory" : "FIFO, socket or device"));
+  require_regular_file(path, "checkpoint file", "a checkpoint (.wckp)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(fmt::format("checkpoint {}: cannot open the file", path));
   in.seekg(0, std::ios::end);

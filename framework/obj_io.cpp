@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "framework/error.hpp"
+#include "framework/files.hpp"
 #include "framework/writers.hpp"
 
 namespace weft {
@@ -74,12 +75,7 @@ void check_obj_lines(const std::string& path) {
 }  // namespace
 
 MeshData read_obj(const std::string& path) {
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("{}: mesh file not found", path));
-  if (!std::filesystem::is_regular_file(status))
-    throw ConfigError(fmt::format("{}: not a regular file (a {}); give an OBJ file", path,
-                                  std::filesystem::is_directory(status) ? "directory" : "FIFO, socket or device"));
+  require_regular_file(path, "mesh file", "an OBJ file");
   check_obj_lines(path);
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;

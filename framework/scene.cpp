@@ -12,6 +12,7 @@
 
 #include <unistd.h>
 
+#include "framework/files.hpp"
 #include "framework/mesh_generators.hpp"
 #include "framework/obj_io.hpp"
 
@@ -704,12 +705,7 @@ void apply_override(Json& doc, const std::string& assignment) {
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw ConfigError(fmt::format("{}: scene file not found", path));
-  if (!std::filesystem::is_regular_file(status))
-    throw ConfigError(fmt::format("{}: not a regular file (a {}); give a scene file (JSON)", path,
-                                  std::filesystem::is_directory(status) ? "directory" : "special file"));
+  require_regular_file(path, "scene file", "a scene file (JSON)");
   std::ifstream in(path);
   if (!in) throw ConfigError(fmt::format("{}: scene file not readable", path));
   Json doc;
