@@ -419,12 +419,14 @@ int run_scene(const RunOptions& opt) {
   const auto signal_name = [](int sig) { return sig == SIGINT ? std::string("SIGINT") : sig == SIGTERM ? std::string("SIGTERM") : std::to_string(sig); };
   // A signal, between two steps or inside one (the step then stopped and put its state
   // back to its start): the state at the start of step s is kept in checkpoint.wckp.
-  const auto interrupt = [&](long long s, int sig) {
+  // `inside`: the signal stopped step s (the simulator counted it); else it came before it.
+  const auto interrupt = [&](long long s, int sig, bool inside) {
     status = "interrupted";
     failure = {{"signal", signal_name(sig)}, {"after_step", s - 1}, {"time", sim->state().t}};
     code = 128 + sig;
     try {
-      if (const auto c = start_of(s)) failure["checkpoint"] = save(*c, "checkpoint.wckp");
+      std::optional<Checkpoint> c = inside ? start_of(s) : checkpoints ? std::optional<Checkpoint>(sim->checkpoint()) : std::nullopt;
+      if (c) failure["checkpoint"] = save(*c, "checkpoint.wckp");
     } catch (const std::exception& e) {
       failure["checkpoint_error"] = e.what();
       fmt::print(stderr, "\nerror: the checkpoint could not be written: {}\n", e.what());
@@ -432,15 +434,7 @@ int run_scene(const RunOptions& opt) {
   };
   for (long long s = step0 + 1; code == exit_ok && s <= total; ++s) {
     if (const int sig = stop_requested()) {  // between two steps: the state is that of step s - 1's end
-      status = "interrupted";
-      failure = {{"signal", signal_name(sig)}, {"after_step", s - 1}, {"time", sim->state().t}};
-      code = 128 + sig;
-      try {
-        if (checkpoints) failure["checkpoint"] = save(sim->checkpoint(), "checkpoint.wckp");
-      } catch (const std::exception& e) {
-        failure["checkpoint_error"] = e.what();
-        fmt::print(stderr, "\nerror: the checkpoint could not be written: {}\n", e.what());
-      }
+      interrupt(s, sig, false);
       break;
     }
     StepReport rep;
@@ -457,7 +451,7 @@ int run_scene(const RunOptions& opt) {
       rep.message = fmt::format("internal error: {}", e.what());
     }
     if (rep.status == Status::interrupted) {
-      interrupt(s, std::max(1, stop_requested()));
+      interrupt(s, std::max(1, stop_requested()), true);
       break;
     }
     if (rep.ok() && !std::isfinite(rep.newton.final_residual))

@@ -34,16 +34,8 @@ using weft::Json;
 
 const fs::path scenes_dir = fs::path(WEFT_SOURCE_DIR) / "scenes";
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-void spit(const fs::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out << text;
-}
+using weft::test::slurp;
+const auto spit = weft::test::write_file;  // the scene, mesh or checkpoint bytes, as a user would save them
 
 /// What the harness saw: cases accepted and refused, and the failures (anything else).
 struct Tally {

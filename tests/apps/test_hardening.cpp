@@ -28,25 +28,13 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using weft::test::Result;
 using weft::test::run_shell;
+using weft::test::read_jsonl;
 using weft::test::run_weft;
+using weft::test::slurp;
 using weft::test::temp_dir;
 
 const std::string scenes = std::string(WEFT_SOURCE_DIR) + "/scenes/";
 const std::string cloth = scenes + "hanging_cloth.json";
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::vector<json> jsonl(const fs::path& p) {
-  std::vector<json> lines;
-  std::ifstream in(p);
-  for (std::string l; std::getline(in, l);) lines.push_back(json::parse(l));  // throws on a cut line
-  return lines;
-}
 
 // An energy that throws at its n-th gradient evaluation, as a broken invariant would.
 struct Tripwire {
@@ -127,7 +115,7 @@ TEST_SUITE("apps") {
     CAPTURE(a.output);
     CHECK(a.code == 3);
     CHECK(a.output.find("stats.jsonl") != std::string::npos);
-    const auto lines = jsonl(stats_only / "stats.jsonl");  // every line parses: the cut one was removed
+    const auto lines = read_jsonl(stats_only / "stats.jsonl");  // every line parses: the cut one was removed
     CHECK(lines.size() > 5);
     const json s = json::parse(slurp(stats_only / "summary.json"));
     CHECK(s["status"] == "failed");
