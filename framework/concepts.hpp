@@ -143,6 +143,20 @@ concept HasDynamicPattern = requires(C& c, AssemblyPlan& plan) {
   { c.update_pattern(plan) } -> std::same_as<bool>;
 };
 
+/// Optional hook of a contact strategy whose potential is a barrier, infinite where the
+/// cloth touches or intersects (contact/barrier.hpp): every iterate of the solve must stay
+/// intersection-free. `c.step_bound(at, dx)` returns the largest s in (0, 1] such that the
+/// straight motion from `at`'s positions by s dx stays at a positive distance (continuous
+/// collision detection with a safety margin), and makes the strategy's potential exact on
+/// that whole segment (it caches the pairs within its range there). The integrators that
+/// minimise the incremental potential call it for every Newton direction and for the
+/// step's initial guess, and search the line only up to the bound; the others must refuse
+/// such a strategy (a static_assert).
+template <class C>
+concept HasStepBound = requires(C& c, const State& at, const Eigen::VectorXd& dx) {
+  { c.step_bound(at, dx) } -> std::same_as<double>;
+};
+
 /// What a compliance-based contact response needs from the implicit step it follows: solves
 /// with the step's last Newton matrix A = M~ + dt^2 K (the matrix of the last factorisation;
 /// rows of pinned and scripted vertices decoupled, so their components of a solution must

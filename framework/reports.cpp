@@ -105,7 +105,7 @@ Json to_json(const NewtonReport& r, bool with_history) {
                    {"step_length", num(it.step_length)}, {"step_norm", num(it.step_norm)},
                    {"line_search_evaluations", it.line_search_evaluations}, {"linear_iterations", it.linear_iterations},
                    {"projected", it.projected}, {"shift", it.shift},
-                   {"constraints_updated", it.constraints_updated}});
+                   {"constraints_updated", it.constraints_updated}, {"step_bound", num(it.step_bound)}});
     j["history"] = h;
   }
   return j;
@@ -134,6 +134,9 @@ Json to_json(const ContactReport& r) {
   put("redetected", r.redetected);
   put("springs", r.springs);
   put("pattern_updates", r.pattern_updates);
+  put("barrier_pairs", r.barrier_pairs);
+  put("min_gap", r.min_gap);
+  put("bounded_steps", r.bounded_steps);
   put("gs_sweeps", r.gs_sweeps);
   put("gs_residual", r.gs_residual);
   put("gs_unconverged", r.gs_unconverged);

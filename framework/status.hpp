@@ -60,6 +60,7 @@ struct NewtonIteration {
   bool projected = false;             ///< the direction used the PSD-projected Hessian
   double shift = 0;                   ///< tau of the shifted matrix K + tau M~ (0: unshifted)
   bool constraints_updated = false;   ///< contacts were added at the iterate this update reached (re-detection)
+  double step_bound = 1;              ///< bounded problems: the admissible fraction of the direction (CCD), 1 otherwise
 };
 
 struct NewtonReport {
@@ -121,6 +122,10 @@ struct ContactReport {
   int contact_newton = 0;      ///< `contact.solver = newton` (rods, linear compliance on cloth): Newton iterations of the contact solves, summed over groups and outer iterations
   int contact_fallbacks = 0;   ///< `contact.solver = newton`: steps taken by its fallbacks (damped least squares, Gauss-Seidel) instead of Newton
   int damped_steps = 0;        ///< ADONIS, staggered projections: rod steps of the constrained Newton iteration cut by its strain trust region (contact.limit_stretch)
+  // Counters of the barrier strategy (contact/barrier.hpp).
+  int barrier_pairs = 0;       ///< pairs (point-triangle, edge-edge, obstacle) within the thickness at the end of the step
+  double min_gap = 0;          ///< [m] smallest distance of a pair within the thickness at the end of the step (0: none)
+  int bounded_steps = 0;       ///< Newton directions the CCD cut short (step bound < 1), summed over the step
 
   /// Folds the report of `end_step` into that of `begin_step` (one step's report): times and
   /// event counters (impulses, hits, releases, projections) add up, counts of contacts
@@ -168,6 +173,9 @@ struct ContactReport {
     damped_steps += end.damped_steps;
     max_penetration = end.max_penetration;
     solve_penetration = std::max(solve_penetration, end.solve_penetration);
+    barrier_pairs = end.barrier_pairs;
+    min_gap = end.min_gap;
+    bounded_steps += end.bounded_steps;
     return *this;
   }
 };

@@ -29,6 +29,8 @@ class BackwardEulerRoot {
 
   template <class E, class C, class L>
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
+    static_assert(!HasStepBound<C>, "a barrier contact strategy needs an integrator that keeps its iterates admissible: "
+                                    "incremental_potential (its line search is bounded by the CCD)");
     return newton_step(energy, contact, linear, p, prm_.initial_guess, prm_.length_tolerance, d_,
                        [&](NewtonProblem& system, Eigen::VectorXd& d, double tol, StepReport& rep) {
                          return find_root(system, d, tol, prm_, rep.newton, rep.linear, rep.times);

@@ -43,6 +43,8 @@ class LinearlyImplicit {
 
   template <class E, class C, class L>
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
+    static_assert(!HasStepBound<C>, "a barrier contact strategy needs an integrator that keeps its iterates admissible: "
+                                    "incremental_potential (its line search is bounded by the CCD)");
     StepReport rep;
     StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
     initial_displacement(p, InitialGuess::zero, d_);

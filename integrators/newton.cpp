@@ -292,7 +292,14 @@ NewtonFailure minimize_trust_region(NewtonProblem& problem, Eigen::VectorXd& d, 
 
 NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolute_tolerance, const NewtonParams& prm,
                        double& shift_hint, NewtonReport& nr, LinearReport& linear, StageTimes& times) {
-  if (prm.globalization == Globalization::trust_region) return minimize_trust_region(problem, d, absolute_tolerance, prm, nr, linear);
+  if (prm.globalization == Globalization::trust_region) {
+    if (problem.bounded())
+      return failure(nr, "newton", Status::invalid_input,
+                     "the trust region cannot keep a barrier's iterates admissible: use globalization = line_search");
+    return minimize_trust_region(problem, d, absolute_tolerance, prm, nr, linear);
+  }
+  LineSearchParams search = prm.search;  // a bounded problem: no extrapolation past its bound
+  if (problem.bounded()) search.max_step = 1.0;
   nr.method = fmt::format("minimise E_inc, line search {}, Hessian {}", enum_name(prm.line_search, line_search_names),
                           enum_name(prm.hessian, hessian_choice_names));
   const Eigen::Index n = d.size();
@@ -323,6 +330,18 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
       nr.status = df.status;
       nr.message = df.message;
       return df;
+    }
+    // A bounded problem (a barrier): only the admissible part of the direction is searched.
+    if (problem.bounded()) {
+      const double bound = problem.step_bound(d, dir);
+      if (!(bound > 0))
+        return fail("line_search", Status::numerical_issue,
+                    "no admissible step along the Newton direction (the iterate is at its domain's boundary)");
+      if (bound < 1) {
+        dir *= bound;
+        slope *= bound;
+      }
+      rec.step_bound = bound;
     }
     rec.directional_derivative = slope;
 
@@ -363,9 +382,9 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
       }
       if (!decided) switch (prm.line_search) {
         case LineSearchKind::full_step: ls = {true, 1.0, phi(1.0), 1}; break;
-        case LineSearchKind::backtracking: ls = backtracking(phi, e, slope, prm.search); break;
-        case LineSearchKind::more_thuente: ls = more_thuente(phi_slope, e, slope, prm.search); break;
-        case LineSearchKind::hager_zhang: ls = hager_zhang(phi_slope, e, slope, prm.search); break;
+        case LineSearchKind::backtracking: ls = backtracking(phi, e, slope, search); break;
+        case LineSearchKind::more_thuente: ls = more_thuente(phi_slope, e, slope, search); break;
+        case LineSearchKind::hager_zhang: ls = hager_zhang(phi_slope, e, slope, search); break;
       }
     }
     rec.line_search_evaluations = ls.evaluations;

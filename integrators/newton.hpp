@@ -70,6 +70,19 @@ class NewtonProblem {
     (void)d;
     return 0;
   }
+  /// True for a problem whose iterates must stay in a region E_inc cannot leave along a
+  /// line (a barrier's domain: no intersection). `minimize` then asks `step_bound` for every
+  /// direction and searches only [d, d + bound dir]; the Wolfe searches do not extrapolate
+  /// beyond it, and the trust region refuses such a problem.
+  virtual bool bounded() const { return false; }
+  /// The largest s in (0, 1] such that every point of d + [0, s] dir is admissible (e.g. the
+  /// time of impact of a continuous collision detection on that segment, with a safety
+  /// margin); 0 when none is. Called once per Newton direction, before the line search.
+  virtual double step_bound(const Eigen::VectorXd& d, const Eigen::VectorXd& dir) {
+    (void)d;
+    (void)dir;
+    return 1.0;
+  }
 };
 
 /// Which Hessian the Newton directions use.

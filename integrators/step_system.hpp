@@ -31,9 +31,11 @@
 /// rows of vertices whose constraints prescribe all three components (exact: their
 /// increment is zero on a feasible iterate).
 #include <Eigen/Core>
+#include <fmt/format.h>
 
 #include <cmath>
 #include <limits>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -163,6 +165,47 @@ class StepSystem final : public NewtonProblem {
   }
   double merit_scale() const override { return dt2_ * std::abs(V0_); }
   double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(mt_.cwiseProduct(v)); }
+
+  /// A barrier strategy (`HasStepBound`): the iterates stay in its domain (newton.hpp).
+  bool bounded() const override { return HasStepBound<C>; }
+  double step_bound(const Eigen::VectorXd& d, const Eigen::VectorXd& dir) override {
+    if constexpr (HasStepBound<C>) {
+      ScopedTimer t(times_, Stage::contact);
+      trial_.x = x0_ + d;
+      return contact_.step_bound(trial_, dir);
+    } else {
+      (void)d;
+      (void)dir;
+      return 1.0;
+    }
+  }
+  /// The initial guess d of a barrier strategy made admissible: from the start positions
+  /// the prescribed (pinned, scripted) displacements first, then the free vertices' part,
+  /// each cut at its step bound. Returns false when the prescribed motion alone cannot be
+  /// taken (it would drive the cloth into contact: `message` says so). No-op otherwise.
+  bool bound_initial_guess(Eigen::VectorXd& d, std::string& message) {
+    if constexpr (HasStepBound<C>) {
+      Eigen::VectorXd prescribed = Eigen::VectorXd::Zero(d.size());
+      for (int i = 0; i < p_.state.num_vertices(); ++i)
+        if (p_.fixed[i]) prescribed.segment<3>(3 * i) = d.segment<3>(3 * i);
+      const Eigen::VectorXd free = d - prescribed;
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(d.size());
+      if (prescribed.cwiseAbs().maxCoeff() > 0) {
+        const double s = step_bound(zero, prescribed);
+        if (s < 1) {
+          message = fmt::format("the pinned and scripted vertices' motion drives the cloth into contact at {:.3g} of the step", s);
+          return false;
+        }
+      }
+      const double s = step_bound(prescribed, free);
+      d = prescribed + s * free;
+      return true;
+    } else {
+      (void)d;
+      (void)message;
+      return true;
+    }
+  }
 
   /// Hands a compliance-based strategy (`HasSystemCompliance`) solves with the last
   /// Newton matrix factorised in this step; when the iteration converged without one (or
@@ -336,9 +379,29 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
   StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
   initial_displacement(p, guess, d);
   system.make_feasible(d);
+  if constexpr (HasStepBound<C>) {
+    // The barrier's potential is exact on the segments step_bound saw: the guess is reached
+    // along them, cut where it would bring the cloth into contact.
+    std::string why;
+    if (!system.bound_initial_guess(d, why)) {
+      rep.status = Status::numerical_issue;
+      rep.failed_stage = "contact";
+      rep.message = why;
+      return rep;
+    }
+  }
   if (!std::isfinite(system.potential(d))) {
     initial_displacement(p, InitialGuess::zero, d);
     system.make_feasible(d);
+    if constexpr (HasStepBound<C>) {
+      std::string why;
+      if (!system.bound_initial_guess(d, why)) {
+        rep.status = Status::numerical_issue;
+        rep.failed_stage = "contact";
+        rep.message = why;
+        return rep;
+      }
+    }
   }
   if constexpr (HasRedetection<C>) system.set_initial_guess(d);  // feasible for the start-of-step contacts
   NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);

@@ -3,6 +3,7 @@
 /// Named energies and the curated combinations of policies. Each combination is
 /// instantiated once, in its own translation unit under policies/combos/, and declared
 /// `extern template` here so no other file instantiates it again.
+#include "contact/barrier.hpp"
 #include "contact/impulse.hpp"
 #include "contact/linear_compliance.hpp"
 #include "contact/no_contact.hpp"
@@ -56,6 +57,8 @@ extern template class Simulator<ClothTheta, integrators::IncrementalPotential, c
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::ImplicitContact, linear::DiagPcg>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::ImplicitContact, linear::SaPpcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::Barrier, linear::Direct>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::Barrier, linear::SaPpcg>;
 extern template class Simulator<ClothOrtho, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::BackwardEulerRoot, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::Direct>;

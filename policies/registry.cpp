@@ -29,6 +29,10 @@
     "implicit_contact", "diag_pcg", "Baraff-Witkin 1998: one linear solve per step, obstacle constraints filtered by modified PCG, repulsion springs") \
   X(cloth_ip_constraints_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
     "implicit_contact", "sa_ppcg", "contact inside the solve with smoothed-aggregation prefiltered PCG (the thesis' ch. 11 simulator)") \
+  X(cloth_ip_barrier_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
+    "barrier", "direct", "barrier contact inside the solve (IPC / C-IPC): log barrier on point-triangle and edge-edge distances, lagged smoothed friction, CCD-bounded line search: intersection-free iterates") \
+  X(cloth_ip_barrier_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", \
+    "barrier", "sa_ppcg", "as cloth_ip_barrier_direct with smoothed-aggregation prefiltered PCG: barrier contact on large cloth") \
   X(cloth_root_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "backward_euler_root", "none",   \
     "direct", "backward Euler as root finding on the residual (the thesis' comparison, ch. 6)")             \
   X(cloth_lie_direct, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",     \
@@ -89,7 +93,8 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
         return fmt::format("cloths.{}.material.model = orthotropic needs membrane(stvk, orthotropic)", c);
   if (combo.contact == "obstacle_penalty" && scene.spec.obstacles.empty())
     return "the scene has no obstacles: contact = obstacle_penalty would pay for a contact stage it does not use";
-  if ((combo.contact == "impulse" || combo.contact == "implicit_contact" || combo.contact == "linear_compliance") &&
+  if ((combo.contact == "impulse" || combo.contact == "implicit_contact" || combo.contact == "linear_compliance" ||
+       combo.contact == "barrier") &&
       scene.spec.obstacles.empty()) {
     const Json* c = scene.solver.contains("contact") ? &scene.solver["contact"] : nullptr;
     if (c && c->is_object() && c->contains("self_contact") && (*c)["self_contact"] == false)
