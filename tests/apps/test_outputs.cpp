@@ -150,3 +150,37 @@ TEST_SUITE("apps") {
     CHECK(read_jsonl(dir / "out" / "stats.jsonl").size() == 1u);
   }
 }
+
+TEST_SUITE("apps") {
+  TEST_CASE("run: the summary reports cloth-cloth intersections and obstacle crossings of every frame") {
+    // Two sheets that cross each other from the start (no contact: cloth_ip_direct), and the
+    // same scene with the lower sheet moved clear.
+    const auto dir = temp_dir("run_contact_check");
+    json scene = small_scene();
+    scene["cloths"][0].erase("pins");
+    scene["gravity"] = {0, 0, 0};
+    json upright = scene["cloths"][0];
+    upright["mesh"]["plane"] = "xz";
+    upright["mesh"]["center"] = {0.01, 0.013, 0};
+    scene["cloths"].push_back(upright);
+    const std::string crossing = write_file(dir / "crossing.json", scene.dump(2));
+    const Result r = run_weft(fmt::format("run {} --out {}", crossing, (dir / "a").string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    const json a = json::parse(slurp(dir / "a" / "summary.json"))["contact_check"];
+    CHECK(a["checked_frames"] == 6);  // frames 0..5
+    CHECK(a["frames_with_cloth_intersections"] == 6);
+    CHECK(a["max_cloth_intersecting_pairs"].get<int>() > 0);
+    CHECK(a["first_time"] == 0.0);
+    CHECK(r.output.find("cloth-cloth intersections in 6") != std::string::npos);
+    scene["cloths"][1]["mesh"]["center"] = {0.01, 0.013, 0.4};
+    const std::string clear = write_file(dir / "clear.json", scene.dump(2));
+    const Result c = run_weft(fmt::format("run {} --out {}", clear, (dir / "b").string()));
+    REQUIRE(c.code == 0);
+    const json b = json::parse(slurp(dir / "b" / "summary.json"))["contact_check"];
+    CHECK(b["frames_with_cloth_intersections"] == 0);
+    CHECK(b["frames_with_obstacle_crossings"] == 0);
+    CHECK(b["deepest_penetration_m"] == 0.0);
+    CHECK(c.output.find("no cloth-cloth intersection") != std::string::npos);
+  }
+}
