@@ -10,6 +10,7 @@
 #include "contact/detection/ccd.hpp"
 #include "contact/detection/collision_detector.hpp"
 #include "contact/obstacle_penalty.hpp"
+#include "framework/distance.hpp"
 #include "framework/obstacle_mesh.hpp"
 #include "framework/timers.hpp"
 
@@ -63,20 +64,39 @@ std::int8_t position_of(int id, const int* ids, int k) {
 
 // Earliest fraction of the straight motion x0 -> x1 at which the sphere (centre x[0], radius
 // R, at rest) comes within `eta` of the triangle (x[1..3]), by conservative advancement on
-// the gap, which is L-Lipschitz in t with L the largest vertex displacement; the gap stays
-// above eta / 2 before the returned time. 1 when it never does.
+// the gap; the gap stays above eta / 2 before the returned time, 1 when it never comes that
+// close. Each step is the longer of two safe ones: the gap is L-Lipschitz in t (L the largest
+// vertex displacement), and along the fixed unit axis n from the closest point to the centre
+// it is at least min_j n . (c - x_j(t)) - R, a minimum of linear functions of t (exact for a
+// triangle sliding past at a constant gap, where the Lipschitz steps would crawl).
 double sphere_triangle_toi(const Stencil& x0, const Stencil& x1, double R, double eta) {
   double L = 0;
   for (int j = 1; j < 4; ++j) L = std::max(L, (x1[j] - x0[j]).norm());
   if (L == 0) return 1.0;
+  const Vector3d c = x0[0];
   double t = 0;
   for (int it = 0; it < 10000; ++it) {
     Stencil xt;
-    xt[0] = x0[0];
+    xt[0] = c;
     for (int j = 1; j < 4; ++j) xt[j] = x0[j] + t * (x1[j] - x0[j]);
-    const double g = std::sqrt(barrier::point_triangle_type(xt).s) - R;
+    const PointTriangle pt = point_triangle_distance(c, xt[1], xt[2], xt[3]);
+    const double dist = std::sqrt(pt.distance_squared), g = dist - R;
     if (g <= eta) return t;
-    t += (g - 0.5 * eta) / L;
+    double step = (g - 0.5 * eta) / L;
+    if (dist > 0) {
+      const Vector3d n = (c - pt.closest) / dist;
+      double axis = std::numeric_limits<double>::infinity();  // n . (c - x_j(t + s)) - R >= eta / 2 for s <= axis
+      for (int j = 1; j < 4; ++j) {
+        const double a = n.dot(c - xt[j]) - R - 0.5 * eta, rate = -n.dot(x1[j] - x0[j]);
+        if (a <= 0) {
+          axis = 0;
+          break;
+        }
+        if (rate < 0) axis = std::min(axis, a / -rate);
+      }
+      step = std::max(step, axis);
+    }
+    t += step;
     if (t >= 1) return 1.0;
   }
   return t;  // the iteration cap: a conservative time
@@ -356,6 +376,8 @@ ContactReport Barrier::begin_step(const State& s, double dt) {
   t_end_ = s.t + dt;
   x0_ = s.x;
   bounded_steps_ = 0;
+  pattern_refreshes_ = 0;
+  pattern_stale_ = false;
   double free_mass = 0;
   int free = 0;
   for (int i = 0; i < s.num_vertices(); ++i)
@@ -468,9 +490,29 @@ bool Barrier::update_pattern(AssemblyPlan& plan) {
   return true;
 }
 
+bool Barrier::refresh_pattern(AssemblyPlan& plan) {
+  if (!pattern_stale_ || self_group_ < 0) return false;
+  pattern_stale_ = false;
+  for (const Pair& p : pairs_)
+    if (p.obstacle < 0 && self_element_.emplace(p.key, static_cast<int>(self_ids_.size() / 4)).second)
+      self_ids_.insert(self_ids_.end(), p.v.begin(), p.v.end());
+  if (self_ids_ == declared_self_) return false;
+  plan.replace_group(self_group_, self_ids_);
+  declared_self_ = self_ids_;
+  ++pattern_refreshes_;
+  index_contributions();
+  return true;
+}
+
 double Barrier::step_bound(const State& at_state, const Eigen::VectorXd& dx) {
   const Eigen::VectorXd x1 = at_state.x + dx;
   collect(at_state.x, x1, pairs_);
+  if (self_group_ >= 0)
+    for (const Pair& p : pairs_)
+      if (p.obstacle < 0 && !self_element_.count(p.key)) {
+        pattern_stale_ = true;
+        break;
+      }
   index_contributions();
   const double alpha = bound(at_state.x, x1);
   if (alpha < 1) ++bounded_steps_;
@@ -571,6 +613,7 @@ ContactReport Barrier::end_step(State& s, double dt) {
   (void)dt;
   ContactReport rep;
   rep.bounded_steps = bounded_steps_;
+  rep.pattern_updates = pattern_refreshes_;  // within the step (begin_step's update counts in the simulator)
   double min_gap = inf;
   for (const Pair& p : pairs_) {
     const double g = barrier::pair_gap(stencil(p, s.x), constants(p));

@@ -157,6 +157,16 @@ concept HasStepBound = requires(C& c, const State& at, const Eigen::VectorXd& dx
   { c.step_bound(at, dx) } -> std::same_as<double>;
 };
 
+/// Optional hook of a strategy with a step bound whose pairs couple vertices the step's
+/// pattern does not (pairs met during the step, off the predicted motion the pattern was
+/// made for): before each Newton matrix is assembled, `c.refresh_pattern(plan)` adds them to
+/// its group (`AssemblyPlan::replace_group`) and returns true when it did; the integrator
+/// then finalises the plan again and remakes its buffer, matrix and symbolic analysis.
+template <class C>
+concept HasPatternRefresh = HasStepBound<C> && requires(C& c, AssemblyPlan& plan) {
+  { c.refresh_pattern(plan) } -> std::same_as<bool>;
+};
+
 /// What a compliance-based contact response needs from the implicit step it follows: solves
 /// with the step's last Newton matrix A = M~ + dt^2 K (the matrix of the last factorisation;
 /// rows of pinned and scripted vertices decoupled, so their components of a solution must

@@ -30,7 +30,7 @@ struct StepProblem {
   double dt;                             ///< [s]
   const Eigen::VectorXd& target;         ///< #V*3: positions at t + dt of non-free vertices
   double mass_damping;                   ///< [1/s] c in the drag force -c M v
-  const AssemblyPlan& plan;              ///< element -> matrix map
+  AssemblyPlan& plan;                    ///< element -> matrix map (a barrier strategy may extend it within the step)
   ElementBuffer& buffer;                 ///< scratch for element Hessians
   BlockCsr& matrix;                      ///< scratch with the plan's pattern
   const std::vector<unsigned char>& fixed;  ///< #V: 1 for pinned or scripted vertices

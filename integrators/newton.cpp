@@ -332,6 +332,9 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
       return df;
     }
     // A bounded problem (a barrier): only the admissible part of the direction is searched.
+    // The convergence and round-off tests keep reading the uncut direction (a direction the
+    // CCD cut short is not a small Newton step).
+    const double newton_step = dir.cwiseAbs().maxCoeff(), newton_slope = slope;
     if (problem.bounded()) {
       const double bound = problem.step_bound(d, dir);
       if (!(bound > 0))
@@ -386,13 +389,21 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
         case LineSearchKind::more_thuente: ls = more_thuente(phi_slope, e, slope, search); break;
         case LineSearchKind::hager_zhang: ls = hager_zhang(phi_slope, e, slope, search); break;
       }
+      // At a bound the Wolfe searches cannot extrapolate, so their curvature test can fail
+      // on a step that decreases E (still descending at the bound): backtrack instead.
+      if (!decided && !ls.accepted && rec.step_bound < 1 &&
+          (prm.line_search == LineSearchKind::more_thuente || prm.line_search == LineSearchKind::hager_zhang)) {
+        const int used = ls.evaluations;
+        ls = backtracking(phi, e, slope, search);
+        ls.evaluations += used;
+      }
     }
     rec.line_search_evaluations = ls.evaluations;
     nr.iterations = it + 1;
     if (!ls.accepted) {
       nr.history.push_back(rec);
       // Below round-off the decrease of E cannot be resolved: converged to precision.
-      if (std::abs(slope) < 1e-12 * (std::abs(e) + problem.merit_scale()) + 1e-300) {
+      if (std::abs(newton_slope) < 1e-12 * (std::abs(e) + problem.merit_scale()) + 1e-300) {
         nr.stop_reason = "precision";
         break;
       }
@@ -401,8 +412,8 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
                               ls.evaluations, slope, r));
     }
     rec.step_length = ls.step;
-    const double full_step = dir.cwiseAbs().maxCoeff();
-    rec.step_norm = ls.step * full_step;
+    const double full_step = newton_step;
+    rec.step_norm = ls.step * dir.cwiseAbs().maxCoeff();
     d += ls.step * dir;
     problem.make_feasible(d);  // the point the line search judged: ls.value is E there
     const double decrease = e - ls.value;

@@ -98,6 +98,14 @@ class StepSystem final : public NewtonProblem {
   void assemble(const Eigen::VectorXd& d, HessianMode mode, double shift) override {
     ScopedTimer t(times_, Stage::hessian);
     trial_.x = x0_ + d;
+    if constexpr (HasPatternRefresh<C>) {
+      if (contact_.refresh_pattern(p_.plan)) {  // contact pairs the step's pattern lacked
+        p_.plan.finalize(p_.state.num_vertices());
+        p_.buffer = p_.plan.make_buffer(p_.buffer.mode());
+        p_.matrix = p_.plan.pattern();
+        p_.pattern_analyzed = false;
+      }
+    }
     p_.buffer.start(p_.matrix);
     energy_.add_hessian(trial_, p_.buffer, mode);
     contact_.add_hessian(trial_, p_.buffer, mode);

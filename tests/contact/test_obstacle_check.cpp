@@ -30,7 +30,7 @@ Eigen::MatrixX3i one_face() {
 }  // namespace
 
 TEST_SUITE("contact") {
-  TEST_CASE("obstacle check: triangles crossing a sphere, a box and a mesh with their vertices outside are found") {
+  TEST_CASE("obstacle check: triangles crossing a sphere or a box or a mesh with their vertices outside are found") {
     ObstacleSpec sphere;
     sphere.shape = ObstacleShape::sphere;
     sphere.name = "ball";
