@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "contact/box_mesh.hpp"
 #include "contact/detection/ccd.hpp"
 #include "contact/detection/collision_detector.hpp"
 #include "contact/obstacle_penalty.hpp"
@@ -34,19 +35,6 @@ namespace {
 
 constexpr double inf = std::numeric_limits<double>::infinity();
 enum GroupKind { vertex_kind = 0, edge_kind = 1, triangle_kind = 2, self_kind = 3 };
-
-// The 12 triangles of a box in body coordinates (corner k: bit 0 x, bit 1 y, bit 2 z).
-void box_mesh(const Vector3d& h, Eigen::MatrixX3d& V, Eigen::MatrixX3i& F) {
-  V.resize(8, 3);
-  for (int k = 0; k < 8; ++k)
-    V.row(k) = Vector3d((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z()).transpose();
-  const int quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
-  F.resize(12, 3);
-  for (int q = 0; q < 6; ++q) {
-    F.row(2 * q) << quads[q][0], quads[q][1], quads[q][2];
-    F.row(2 * q + 1) << quads[q][0], quads[q][2], quads[q][3];
-  }
-}
 
 std::uint64_t pair_key(int code, int a, int b) {
   return (static_cast<std::uint64_t>(code) << 48) ^ (static_cast<std::uint64_t>(a) << 24) ^ static_cast<std::uint64_t>(b);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "contact/box_mesh.hpp"
 #include "contact/obstacle_penalty.hpp"
 #include "contact/verify/intersection_check.hpp"
 #include "framework/distance.hpp"
@@ -48,12 +49,7 @@ ObstacleCheckReport check_obstacles(const Eigen::Ref<const Eigen::VectorXd>& x, 
           V = o.mesh->V;
           F = o.mesh->F;
         } else {
-          const Vector3d h = o.half_extents;
-          V.resize(8, 3);
-          for (int k = 0; k < 8; ++k)
-            V.row(k) = Vector3d((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z()).transpose();
-          F.resize(12, 3);
-          F << 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6;
+          box_mesh(o.half_extents, V, F);
         }
         std::vector<Vector3d> posed(V.rows());
         for (int i = 0; i < V.rows(); ++i) posed[i] = pose.rotation * V.row(i).transpose() + pose.center;
