@@ -189,8 +189,9 @@ class StepSystem final : public NewtonProblem {
   }
   /// The initial guess d of a barrier strategy made admissible: from the start positions
   /// the prescribed (pinned, scripted) displacements first, then the free vertices' part,
-  /// each cut at its step bound. Returns false when the prescribed motion alone cannot be
-  /// taken (it would drive the cloth into contact: `message` says so). No-op otherwise.
+  /// each cut at its step bound. Returns false when the prescribed motion alone is cut (it
+  /// brings a pair within a fifth of its gap, the bound's margin: `message` says so). No-op
+  /// for other strategies.
   bool bound_initial_guess(Eigen::VectorXd& d, std::string& message) {
     if constexpr (HasStepBound<C>) {
       Eigen::VectorXd prescribed = Eigen::VectorXd::Zero(d.size());
@@ -201,7 +202,8 @@ class StepSystem final : public NewtonProblem {
       if (prescribed.cwiseAbs().maxCoeff() > 0) {
         const double s = step_bound(zero, prescribed);
         if (s < 1) {
-          message = fmt::format("the pinned and scripted vertices' motion drives the cloth into contact at {:.3g} of the step", s);
+          message = fmt::format("the pinned and scripted vertices' motion alone brings cloth pairs within a fifth of their gap "
+                                "(the barrier's step bound: {:.3g} of the step); a smaller dt helps", s);
           return false;
         }
       }
@@ -385,21 +387,11 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
                        Eigen::VectorXd& d, Solve&& solve) {
   StepReport rep;
   StepSystem<E, C, L> system(energy, contact, linear, p, rep.times);
-  initial_displacement(p, guess, d);
-  system.make_feasible(d);
-  if constexpr (HasStepBound<C>) {
-    // The barrier's potential is exact on the segments step_bound saw: the guess is reached
-    // along them, cut where it would bring the cloth into contact.
-    std::string why;
-    if (!system.bound_initial_guess(d, why)) {
-      rep.status = Status::numerical_issue;
-      rep.failed_stage = "contact";
-      rep.message = why;
-      return rep;
-    }
-  }
-  if (!std::isfinite(system.potential(d))) {
-    initial_displacement(p, InitialGuess::zero, d);
+  // The guess, feasible for the constraints; for a barrier (whose potential is exact on the
+  // segments step_bound saw) reached along them, cut where it would bring the cloth into
+  // contact. False (and the report says why) when the prescribed motion alone cannot be taken.
+  const auto prepare_guess = [&](InitialGuess g) {
+    initial_displacement(p, g, d);
     system.make_feasible(d);
     if constexpr (HasStepBound<C>) {
       std::string why;
@@ -407,10 +399,13 @@ StepReport newton_step(const E& energy, C& contact, L& linear, StepProblem& p, I
         rep.status = Status::numerical_issue;
         rep.failed_stage = "contact";
         rep.message = why;
-        return rep;
+        return false;
       }
     }
-  }
+    return true;
+  };
+  if (!prepare_guess(guess)) return rep;
+  if (!std::isfinite(system.potential(d)) && !prepare_guess(InitialGuess::zero)) return rep;
   if constexpr (HasRedetection<C>) system.set_initial_guess(d);  // feasible for the start-of-step contacts
   NewtonFailure f = solve(system, d, length_tolerance * std::sqrt(system.free_mass()), rep);
   if constexpr (HasRedetection<C>) {
