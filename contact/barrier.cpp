@@ -317,16 +317,10 @@ void Barrier::index_contributions() {
     for (int j = 0; j < 4; ++j)
       if (p.v[j] >= 0) cloth[nc++] = j;
     if (p.obstacle < 0) {
+      // A pair the pattern lacks (just collected by step_bound) is indexed again by
+      // refresh_pattern, which runs before the next assembly and adds it.
       const auto it = self_element_.find(p.key);
-      if (it != self_element_.end() && self_group_ >= 0) {
-        all.push_back({self_kind, it->second, {q, {0, 1, 2, 3}}});
-      } else {  // not in this step's pattern: diagonal blocks only
-        for (int j = 0; j < 4; ++j) {
-          Contribution c{q, {-1, -1, -1, -1}};
-          c.local[j] = 0;
-          all.push_back({vertex_kind, p.v[j], c});
-        }
-      }
+      if (it != self_element_.end()) all.push_back({self_kind, it->second, {q, {0, 1, 2, 3}}});
       continue;
     }
     Contribution c{q, {-1, -1, -1, -1}};
