@@ -9,6 +9,16 @@
 /// linear_solve + line_search), contacts per step, CCD hits, impact zones, Newton and
 /// linear iterations. Writes bench_contact.csv and bench_contact.jsonl (one line per step
 /// and one per resolution) to --out; a resolution is written as soon as it is done.
+///
+/// With a suite (`--suite production`, or a suite file) it runs the suite's cases instead, each
+/// under each of its combinations, checks every step for cloth-cloth intersections and
+/// obstacle crossings (untimed), and adds per run the 95th percentile and the largest step
+/// time, linear iterations per Newton iteration, the steps with an intersection or a crossing,
+/// the deepest penetration and whether the run completed. A suite file is JSON (comments
+/// allowed): {"description": "...", "combos": [combo, ...], "cases": [{"name", "scene" (relative
+/// to weft's data directory or absolute), "overrides": ["key=value", ...], "combos", "steps",
+/// "skip"}, ...]}; a case's combos replace the file's, and --combo, --steps, --skip and the
+/// command line's overrides apply to every case.
 #include <string>
 #include <vector>
 
@@ -24,6 +34,7 @@ struct BenchContactOptions {
   int skip = 0;                         ///< leading steps run but not counted (e.g. the fall before contact)
   bool check = false;                   ///< exact intersection check after every step (untimed, counted in the output)
   bool quick = false;                   ///< tiny run for tests: resolution 11 unless given, 4 steps
+  std::string suite;                    ///< "" = one scene; a name (<data>/scenes/suites/contact_<name>.json) or a suite file
   std::string out_dir;                  ///< "" = out/bench_contact
 };
 

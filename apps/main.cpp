@@ -143,6 +143,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   cmd_bench_contact->add_flag("--check", bench_contact.check, "exact cloth-cloth intersection check after every step (untimed)");
   cmd_bench_contact->add_flag("--quick", bench_contact.quick, "reduced run: resolution 11 unless given, 4 steps");
+  cmd_bench_contact->add_option("--suite", bench_contact.suite,
+                                "run a suite of scenes, each checked after every step: 'production' (the 40k-vertex scenes), "
+                                "'shrunk' (the same at small sizes) or a suite file");
   cmd_bench_contact->add_option("--out", bench_contact.out_dir, "output directory (default: out/bench_contact)");
 
   app::BenchHairOptions bench_hair;

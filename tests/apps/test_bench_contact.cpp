@@ -1,6 +1,8 @@
 // `weft bench contact --quick`: the table is printed, the CSV has its columns and one row per
 // resolution, the shares are fractions of the step time, and the exact intersection check
-// found nothing. A bad resolution is a configuration error (exit 2) before any work.
+// found nothing. A bad resolution is a configuration error (exit 2) before any work. A suite
+// (`--suite shrunk`) runs each of its cases, checks every step for intersections and obstacle
+// crossings and reports the step-time spread and whether each run completed.
 #include <doctest/doctest.h>
 
 #include <unistd.h>
@@ -87,6 +89,63 @@ TEST_SUITE("apps") {
     const Result bad = run_weft(fmt::format("bench contact --quick --resolutions 7y --out {}", dir.string()));
     CHECK(bad.code == 2);
     CHECK(bad.output.find("--resolutions") != std::string::npos);
+    fs::remove_all(dir);
+  }
+
+  TEST_CASE("bench: weft bench contact --suite runs every case and checks each step") {
+    const auto dir = temp_dir("bench_contact_suite_" + std::to_string(getpid()));
+    // The shipped shrunk suite, three steps of each case under the barrier.
+    const Result r = run_weft(fmt::format("--threads 1 bench contact --suite shrunk --combo cloth_ip_barrier_direct --steps 3 --out {}",
+                                          dir.string()));
+    CAPTURE(r.output);
+    REQUIRE(r.code == 0);
+    for (const char* s : {"dropVertical_13", "dropHorizontal_15", "twisted_21x9", "sheet_stack_8x9", "drape_11", "p95",
+                          "obstacle crossings", "completed"})
+      CHECK_MESSAGE(r.output.find(s) != std::string::npos, s);
+    std::stringstream csv(slurp(dir / "bench_contact.csv"));
+    std::string line;
+    REQUIRE(std::getline(csv, line));
+    const std::vector<std::string> header = split(line);
+    auto col = [&](const std::vector<std::string>& row, const std::string& name) {
+      const auto it = std::find(header.begin(), header.end(), name);
+      REQUIRE_MESSAGE(it != header.end(), name);
+      return row.at(it - header.begin());
+    };
+    int rows = 0, stack_vertices = 0;
+    while (std::getline(csv, line)) {
+      const std::vector<std::string> row = split(line);
+      CAPTURE(line);
+      REQUIRE(row.size() == header.size());
+      ++rows;
+      CHECK(col(row, "combo") == "cloth_ip_barrier_direct");
+      CHECK(std::stoi(col(row, "steps")) == 3);
+      const double mean = std::stod(col(row, "seconds_per_step")), p95 = std::stod(col(row, "p95_step_s")),
+                   max = std::stod(col(row, "max_step_s"));
+      CHECK(mean > 0);
+      CHECK(p95 <= max * (1 + 1e-9));
+      CHECK(max >= mean * (1 - 1e-9));
+      CHECK(col(row, "intersecting_steps") == "0");
+      CHECK(col(row, "obstacle_crossing_steps") == "0");
+      CHECK(col(row, "completed") == "1");
+      if (col(row, "case") == "\"sheet_stack_8x9\"") stack_vertices = std::stoi(col(row, "vertices"));
+    }
+    CHECK(rows == 5);
+    CHECK(stack_vertices == 8 * 81);  // every cloth of the stack shrunk by the case's overrides
+    // Step records name their case: 5 x 3 steps, 5 run records and the meta record.
+    const auto lines = read_jsonl(dir / "bench_contact.jsonl");
+    CHECK(lines.size() == 1 + 5 * (3 + 1));
+    CHECK(lines.at(1).at("case") == "dropVertical_13");
+    CHECK(lines.at(1).contains("obstacle_crossings"));
+    fs::remove_all(dir);
+
+    // A suite file with an unknown key is refused before any work, naming the key.
+    fs::create_directories(dir);
+    const fs::path bad = dir / "bad_suite.json";
+    std::ofstream(bad) << R"({"cases": [{"scene": "scenes/drape_sphere.json", "step": 3}]})";
+    const Result refused = run_weft(fmt::format("bench contact --suite {} --out {}", bad.string(), (dir / "out").string()));
+    CHECK(refused.code == 2);
+    CHECK(refused.output.find("cases.0.step") != std::string::npos);
+    CHECK(!fs::exists(dir / "out"));
     fs::remove_all(dir);
   }
 }
