@@ -354,8 +354,7 @@ void Barrier::index_contributions() {
 
 ContactReport Barrier::begin_step(const State& s, double dt) {
   ContactReport rep;
-  dt_ = dt;
-  t_end_ = s.t + dt;
+  const double t_end = s.t + dt;
   x0_ = s.x;
   bounded_steps_ = 0;
   pattern_refreshes_ = 0;
@@ -371,7 +370,7 @@ ContactReport Barrier::begin_step(const State& s, double dt) {
   for (Obstacle& o : obstacles_) {
     const ObstacleSpec& spec = specs_[o.spec];
     o.p0 = ObstaclePose::at(spec, s.t);
-    o.p1 = ObstaclePose::at(spec, t_end_);
+    o.p1 = ObstaclePose::at(spec, t_end);
     if (o.body >= 0) {
       o.x1.resize(3 * o.local.rows());
       for (int i = 0; i < o.local.rows(); ++i)

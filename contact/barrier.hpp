@@ -177,7 +177,7 @@ class Barrier {
   std::vector<int> cloth_of_;         // per vertex: its cloth (rest-state exclusion within one cloth only)
   std::vector<double> edge_rest_sq_;  // |e_rest|^2 per cloth edge
   int num_vertices_ = 0;
-  double kappa_ = 0, dt_ = 0, t_end_ = 0;
+  double kappa_ = 0;
   Eigen::VectorXd x0_;  // start of the step (friction displacements)
   std::vector<Pair> pairs_;
   std::vector<Pair> friction_pairs_;

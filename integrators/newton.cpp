@@ -1,5 +1,6 @@
 #include "integrators/newton.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -315,6 +316,12 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
   nr.tolerance = prm.relative_tolerance * r + absolute_tolerance;
   if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient at the start of the step");
 
+  // Inexact Newton: the solver's tolerance is restored on every way out.
+  struct RestoreTolerance {
+    NewtonProblem& p;
+    ~RestoreTolerance() { p.set_linear_tolerance(0); }
+  } restore{problem};
+  bool confirm = false;  // a small step met with a loose solve: the next solve is exact
   for (int it = 0;; ++it) {
     if (NewtonFailure stop; should_stop(nr, r, it, prm.max_iterations, "Newton", stop)) {
       if (stop.status != Status::success) return stop;
@@ -324,6 +331,9 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     rec.merit = e;
     rec.residual = r;
 
+    const double forcing =
+        prm.forcing > 0 && !confirm && nr.initial_residual > 0 ? std::min(prm.forcing, std::sqrt(r / nr.initial_residual)) : 0.0;
+    problem.set_linear_tolerance(forcing);
     double slope = 0;
     if (const NewtonFailure df = descent_direction(problem, d, f, prm, shift_hint, rec, linear, dir, slope);
         df.status != Status::success) {
@@ -431,9 +441,15 @@ NewtonFailure minimize(NewtonProblem& problem, Eigen::VectorXd& d, double absolu
     nr.history.push_back(rec);
     if (!std::isfinite(r)) return fail("energy", Status::numerical_issue, "non-finite gradient after the Newton update");
     if (!updated && small_step(nr, prm, full_step, decrease, e0 - e)) {
+      if (forcing > 0) {  // the loose solve's step may be small for being loose: confirm
+        confirm = true;
+        nr.stop_reason.clear();
+        continue;
+      }
       nr.final_residual = r;
       break;
     }
+    confirm = false;
   }
   nr.status = Status::success;
   return {};

@@ -83,6 +83,10 @@ class NewtonProblem {
     (void)dir;
     return 1.0;
   }
+  /// The relative tolerance of the next linear solves (an inexact Newton's forcing term;
+  /// 0: the solver's own). Iterative solvers stop there when it is looser than their own
+  /// tolerance; direct solvers ignore it.
+  virtual void set_linear_tolerance(double relative) { (void)relative; }
 };
 
 /// Which Hessian the Newton directions use.
@@ -117,6 +121,13 @@ struct NewtonParams {
   LineSearchParams search;
   Globalization globalization = Globalization::line_search;
   double trust_radius = 1e-2;         ///< [m] initial trust radius (RMS displacement, mass-weighted)
+  /// Inexact Newton (Dembo, Eisenstat and Steihaug 1982): iteration k's linear solve stops at
+  /// relative residual eta_k = min(forcing, sqrt(||f_k|| / ||f_0||)), never tighter than the
+  /// solver's own tolerance, so early iterations far from the solution take few Krylov
+  /// iterations and the last ones converge superlinearly. A step-size or decrease stop met
+  /// with a loose solve is confirmed by one more iteration at the solver's tolerance.
+  /// Iterative solvers only (0: off, every solve at linear.tolerance).
+  double forcing = 0;
 
   template <class V>
   void visit_newton(V& v) {
@@ -136,6 +147,8 @@ struct NewtonParams {
     v.choice("globalization", globalization, globalization_names,
              "line_search (with the Hessian choice) or trust_region (exact Hessian, Steihaug-Toint CG)");
     v.field("trust_radius", trust_radius, {Unit::length, Range::gt(0), "trust_region: initial radius, as an RMS displacement"});
+    v.field("forcing", forcing,
+            {Unit::none, Range::closed_open(0, 1), "inexact Newton: iterative linear solves stop at min(forcing, sqrt(||f_k||/||f_0||)) relative residual (0: at linear.tolerance)"});
     v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
     v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
   }

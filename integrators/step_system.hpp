@@ -174,6 +174,11 @@ class StepSystem final : public NewtonProblem {
   double merit_scale() const override { return dt2_ * std::abs(V0_); }
   double mass_dot(const Eigen::VectorXd& u, const Eigen::VectorXd& v) const override { return u.dot(mt_.cwiseProduct(v)); }
 
+  /// Iterative solvers take an inexact Newton's forcing term (`NewtonParams::forcing`).
+  void set_linear_tolerance(double relative) override {
+    if constexpr (requires { linear_.set_tolerance(relative); }) linear_.set_tolerance(relative);
+    else (void)relative;
+  }
   /// A barrier strategy (`HasStepBound`): the iterates stay in its domain (newton.hpp).
   bool bounded() const override { return HasStepBound<C>; }
   double step_bound(const Eigen::VectorXd& d, const Eigen::VectorXd& dir) override {

@@ -35,6 +35,7 @@
 ///     template class weft::linear::Ppcg<weft::linear::SaAmg>;
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <string>
@@ -223,6 +224,9 @@ class ModifiedPcg {
   /// A known solution x* for the energy error of the next solves (nullptr: none; not owned):
   /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (methods/multigrid §8, V23).
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
+  /// The relative tolerance of the next solves, looser than linear.tolerance (an inexact
+  /// Newton's forcing term); 0 or below linear.tolerance: linear.tolerance.
+  void set_tolerance(double relative) { forced_tolerance_ = relative; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
   std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }
@@ -239,7 +243,9 @@ class ModifiedPcg {
   const BlockCsr* A_ = nullptr;
   const Eigen::VectorXd* x_star_ = nullptr;
   double setup_seconds_ = 0;
+  double forced_tolerance_ = 0;
   std::string input_error_;
+  double tolerance() const { return std::max(prm_.tolerance, forced_tolerance_); }
 };
 
 /// Whether P can be set up from A read through per-vertex filters (Ahat on the fly):
@@ -274,6 +280,9 @@ class Ppcg {
   /// A known solution x* for the energy error of the next solves (nullptr: none; not owned):
   /// energy_error = ||S (x - x*)||_A / ||x*||_A with the unfiltered A (methods/multigrid §8, V23).
   void set_reference(const Eigen::VectorXd* x_star) { x_star_ = x_star; }
+  /// The relative tolerance of the next solves, looser than linear.tolerance (an inexact
+  /// Newton's forcing term); 0 or below linear.tolerance: linear.tolerance.
+  void set_tolerance(double relative) { forced_tolerance_ = relative; }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
   std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }
@@ -289,7 +298,9 @@ class Ppcg {
   const Eigen::VectorXd* x_star_ = nullptr;
   VertexFilterView filter_;         // non-empty: Ahat applied on the fly from A_
   double setup_seconds_ = 0;
+  double forced_tolerance_ = 0;
   std::string input_error_;
+  double tolerance() const { return std::max(prm_.tolerance, forced_tolerance_); }
 };
 
 extern template class ModifiedPcg<BlockJacobi>;

@@ -166,7 +166,7 @@ LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x)
       x.setZero(b.size());
     }
     work_.resize(b.size());
-    detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep);
+    detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {tolerance(), prm_.max_iterations}, work_, rep);
   }
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
   rep.memory_bytes = filters_.bytes();
@@ -242,7 +242,7 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     } else {
       x.setZero(b.size());
     }
-    detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {prm_.tolerance, prm_.max_iterations}, work_, rep, filter_);
+    detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {tolerance(), prm_.max_iterations}, work_, rep, filter_);
     pre_.finish(x);  // x = z + S y: constraints to round-off
   }
   rep.prefilter_seconds = pre_.take_seconds();
