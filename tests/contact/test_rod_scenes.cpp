@@ -626,8 +626,23 @@ TEST_SUITE("slow") {
 }
 
 
+
+namespace {
+// The two replays below reproduce their recorded marginal steps only with the OpenBLAS
+// kernels they were recorded with (SkylakeX, set by tests/CMakeLists.txt on CPUs with
+// AVX-512); with other kernels the replayed step rounds differently and is not the case the
+// test is about. False, with a message, where those kernels are not set.
+bool recorded_blas_kernels() {
+  const char* core = std::getenv("OPENBLAS_CORETYPE");
+  if (core && std::string(core).find("SkylakeX") != std::string::npos) return true;
+  MESSAGE("not run: this replay needs OpenBLAS's SkylakeX kernels (a CPU with AVX-512; tests/CMakeLists.txt)");
+  return false;
+}
+}  // namespace
+
 TEST_SUITE("rods") {
   TEST_CASE("rods: ADONIS restarts a group whose exact iteration folds an edge with projected re-linearisations (replayed step 293)") {
+    if (!recorded_blas_kernels()) return;
     // The near-wall whip at 120 vertices, 20 rad/s and 10 ms from the state before step 293
     // (see the whole trajectory above): with contact.projected_restart = false the exact
     // iteration folds an edge there; by default the group starts again from d_DEL with
@@ -659,6 +674,7 @@ TEST_SUITE("rods") {
   }
 
   TEST_CASE("rods: ADONIS restarts a group whose exact iteration ends capped and stretched with projected re-linearisations (replayed step 31)") {
+    if (!recorded_blas_kernels()) return;
     // scenes/whip_edge.json with a 20 um rod at 10 ms from the state after step 30, with
     // contact.round_start = last (the default until 2026-11-28, when it was recorded): the exact
     // iteration runs away without folding an edge and stops at newton_max with the rod
