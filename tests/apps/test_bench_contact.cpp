@@ -26,6 +26,13 @@ std::vector<std::string> split(const std::string& line) {
   return out;
 }
 
+// The field of a CSV row under the header's column `name`.
+std::string column(const std::vector<std::string>& header, const std::vector<std::string>& row, const std::string& name) {
+  const auto it = std::find(header.begin(), header.end(), name);
+  REQUIRE_MESSAGE(it != header.end(), name);
+  return row.at(it - header.begin());
+}
+
 }  // namespace
 
 TEST_SUITE("apps") {
@@ -50,11 +57,7 @@ TEST_SUITE("apps") {
                             "response_share", "solve_share", "contacts_per_step", "ccd_hits_per_step", "impact_zones_per_step",
                             "newton_per_step", "linear_per_step", "intersections", "status"})
       CHECK_MESSAGE(std::find(header.begin(), header.end(), col) != header.end(), col);
-    auto col = [&](const std::vector<std::string>& row, const std::string& name) {
-      const auto it = std::find(header.begin(), header.end(), name);
-      REQUIRE(it != header.end());
-      return row.at(it - header.begin());
-    };
+    auto col = [&](const std::vector<std::string>& row, const std::string& name) { return column(header, row, name); };
     int rows = 0;
     while (std::getline(csv, line)) {
       const std::vector<std::string> row = split(line);
@@ -106,11 +109,7 @@ TEST_SUITE("apps") {
     std::string line;
     REQUIRE(std::getline(csv, line));
     const std::vector<std::string> header = split(line);
-    auto col = [&](const std::vector<std::string>& row, const std::string& name) {
-      const auto it = std::find(header.begin(), header.end(), name);
-      REQUIRE_MESSAGE(it != header.end(), name);
-      return row.at(it - header.begin());
-    };
+    auto col = [&](const std::vector<std::string>& row, const std::string& name) { return column(header, row, name); };
     int rows = 0, stack_vertices = 0;
     while (std::getline(csv, line)) {
       const std::vector<std::string> row = split(line);
