@@ -179,7 +179,10 @@ Resolution run_resolution(int n, const std::string& scene_path, const std::vecto
   if (r.state_step.empty()) r.state_step.push_back(r.steps);
 
   // 2. The bending model of the combination, alone in its own assembly plan.
-  models::HingeBending<Angle> model(scene, {});
+  // P times the eigen-projection per hinge (the default Gauss-Newton projection needs no eigen-solve).
+  typename models::HingeBending<Angle>::Params prm;
+  prm.projection = models::BendingProjection::eigen;
+  models::HingeBending<Angle> model(scene, prm);
   r.hinges = model.num_hinges();
   r.lone = model.num_lone_triangles();
   AssemblyPlan plan;

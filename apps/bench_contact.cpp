@@ -178,7 +178,13 @@ double quantile(std::vector<double> v, double q) {
 
 }  // namespace
 
-int bench_contact(const BenchContactOptions& opt) {
+int bench_contact(const BenchContactOptions& given) {
+  BenchContactOptions opt = given;
+  // A suite names its scenes, so after --suite the first key=value reaches the scene positional.
+  if (!opt.suite.empty() && opt.scene.find('=') != std::string::npos) {
+    opt.overrides.insert(opt.overrides.begin(), opt.scene);
+    opt.scene.clear();
+  }
   const std::string data = app::data_dir();
   const bool suite = !opt.suite.empty();
   const bool check = opt.check || suite;  // a suite always checks

@@ -128,7 +128,13 @@ struct LinearBenchSimulation::Models {
   models::HingeBending<models::ThetaEnergy> bending;
   AssemblyPlan plan;
   ElementBuffer buf;
-  Models(const Scene& s) : membrane(s, {}), bending(s, {}) {}
+  // Bending projected per hinge by eigen-decomposition: the systems of bench/results/table-11-1.
+  static models::HingeBending<models::ThetaEnergy>::Params eigen_projection() {
+    models::HingeBending<models::ThetaEnergy>::Params p;
+    p.projection = models::BendingProjection::eigen;
+    return p;
+  }
+  Models(const Scene& s) : membrane(s, {}), bending(s, eigen_projection()) {}
 };
 
 LinearBenchSimulation::LinearBenchSimulation(const ExampleConfig& cfg) : cfg_(cfg) {

@@ -148,7 +148,7 @@ struct NewtonParams {
              "line_search (with the Hessian choice) or trust_region (exact Hessian, Steihaug-Toint CG)");
     v.field("trust_radius", trust_radius, {Unit::length, Range::gt(0), "trust_region: initial radius, as an RMS displacement"});
     v.field("forcing", forcing,
-            {Unit::none, Range::closed_open(0, 1), "inexact Newton: iterative linear solves stop at min(forcing, sqrt(||f_k||/||f_0||)) relative residual (0: at linear.tolerance)"});
+            {Unit::none, Range::closed_open(0, 1), "inexact Newton with a line search (minimisation; not the trust region or root finding): iterative linear solves stop at min(forcing, sqrt(||f_k||/||f_0||)) relative residual (0: at linear.tolerance)"});
     v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
     v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
   }

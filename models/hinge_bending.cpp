@@ -561,9 +561,14 @@ void HingeBending<AngleFunction>::evaluate_per_hinge(const State& s, Eigen::Vect
     }
     const bending::Psi p = bending::psi<AngleFunction>(a, hinges_[i].phi_bar, hinges_[i].kappa);
     const bending::Vec12 gt = bending::grad_theta(f);
-    bending::Mat12 H = p.d1 * bending::hess_theta(f);
-    H.noalias() += p.d2 * gt * gt.transpose();
-    if (mode == HessianMode::projected) H = bending::project_psd(H);
+    bending::Mat12 H;
+    if (mode == HessianMode::projected && prm_.projection == BendingProjection::gauss_newton) {
+      H.noalias() = std::max(p.d2, 0.0) * gt * gt.transpose();
+    } else {
+      H = p.d1 * bending::hess_theta(f);
+      H.noalias() += p.d2 * gt * gt.transpose();
+      if (mode == HessianMode::projected) H = bending::project_psd(H);
+    }
     buf->set(group_, i, H);
     if (g) hinge_grad_[i] = p.d1 * gt;
   });

@@ -145,6 +145,19 @@ TEST_SUITE("apps") {
     CHECK(refused.code == 2);
     CHECK(refused.output.find("cases.0.step") != std::string::npos);
     CHECK(!fs::exists(dir / "out"));
+
+    // Overrides after --suite apply to every case, after the case's own: the drape at 9 x 9.
+    const fs::path one = dir / "one_case.json";
+    std::ofstream(one) << R"({"cases": [{"scene": "scenes/drape_sphere.json", "overrides": ["cloths.0.mesh.resolution=[11,11]"], "steps": 1}]})";
+    const Result over = run_weft(fmt::format("--threads 1 bench contact --suite {} --out {} 'cloths.0.mesh.resolution=[9,9]'",
+                                             one.string(), (dir / "over").string()));
+    CAPTURE(over.output);
+    REQUIRE(over.code == 0);
+    std::stringstream one_csv(slurp(dir / "over" / "bench_contact.csv"));
+    REQUIRE(std::getline(one_csv, line));
+    const std::vector<std::string> one_header = split(line);
+    REQUIRE(std::getline(one_csv, line));
+    CHECK(column(one_header, split(line), "vertices") == "81");
     fs::remove_all(dir);
   }
 }

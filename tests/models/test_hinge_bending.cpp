@@ -234,6 +234,40 @@ TEST_SUITE("models") {
     }
   }
 
+  TEST_CASE_TEMPLATE("hinge_bending: the Gauss-Newton projection is PSD and is the exact Hessian less psi' Hess(theta)", Angle,
+                     ThetaEnergy, TanEnergy) {
+    // projection = gauss_newton keeps max(psi'', 0) grad(theta) grad(theta)^T per hinge. On a
+    // bent random patch: PSD, different from the exact Hessian (the guard), and equal to
+    // exact - sum psi' Hess(theta) where psi'' >= 0; at the rest shape (psi' = 0) the two agree.
+    const MeshData m = support::random_patch(29, /*curved=*/true);
+    typename HingeBending<Angle>::Params prm;
+    prm.projection = BendingProjection::gauss_newton;
+    auto p = support::make_patch<HingeBending<Angle>>(m, support::perturb(positions(m), 0.3, 30), prm);
+    const Eigen::MatrixXd He = support::dense_hessian(p.model, p.state, HessianMode::exact);
+    const Eigen::MatrixXd Hg = support::dense_hessian(p.model, p.state, HessianMode::projected);
+    CHECK(min_eigenvalue(Hg) >= -1e-12 * max_abs_eigenvalue(Hg));
+    Eigen::MatrixXd expected = He;
+    int negative = 0;
+    for (int i = 0; i < p.model.num_hinges(); ++i) {
+      const auto& h = p.model.hinge(i);
+      const auto x = [&](int k) { return Eigen::Vector3d(p.state.x.template segment<3>(3 * h.v[k])); };
+      const auto f = bending::hinge_frames(x(0), x(1), x(2), x(3));
+      const bending::Psi psi = bending::psi<Angle>(bending::hinge_angle(f), h.phi_bar, h.kappa);
+      const bending::Vec12 gt = bending::grad_theta(f);
+      bending::Mat12 drop = psi.d1 * bending::hess_theta(f);
+      if (psi.d2 < 0) drop += psi.d2 * gt * gt.transpose(), ++negative;
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) expected.block<3, 3>(3 * h.v[a], 3 * h.v[b]) -= drop.template block<3, 3>(3 * a, 3 * b);
+    }
+    MESSAGE(negative << " of " << p.model.num_hinges() << " hinges with psi'' < 0");
+    REQUIRE(support::relative_error(Hg, He) > 1e-3);  // the curvature term matters here
+    CHECK(support::relative_error(Hg, expected) <= 1e-12);
+    auto rest = support::make_patch<HingeBending<Angle>>(m, positions(m), prm);
+    const Eigen::MatrixXd Hr = support::dense_hessian(rest.model, rest.state, HessianMode::exact);
+    REQUIRE(Hr.norm() > 0);
+    CHECK(support::relative_error(support::dense_hessian(rest.model, rest.state, HessianMode::projected), Hr) <= 1e-10);
+  }
+
   TEST_CASE_TEMPLATE("hinge_bending: the PSD projection on the translations' complement equals the 12x12 eigen projection",
                      Angle, ThetaEnergy, TanEnergy) {
     // project_psd decomposes the 9x9 Q^T H Q (Q: orthonormal complement of the translations),

@@ -84,7 +84,10 @@ inline ClothSystem cloth_system(int m, Tessellation t = Tessellation::regular, P
     p[2] = -0.02 * std::cos(M_PI * u) * std::cos(M_PI * v);
   }
   models::StvkMembrane<models::Isotropic> membrane(scene, {});
-  models::HingeBending<models::ThetaEnergy> bending(scene, {});
+  // The eigen-projection of each hinge: the systems whose iteration counts are recorded.
+  models::HingeBending<models::ThetaEnergy>::Params bending_prm;
+  bending_prm.projection = models::BendingProjection::eigen;
+  models::HingeBending<models::ThetaEnergy> bending(scene, bending_prm);
   AssemblyPlan plan;
   membrane.declare(plan);
   bending.declare(plan);
