@@ -180,9 +180,7 @@ Resolution run_resolution(int n, const std::string& scene_path, const std::vecto
 
   // 2. The bending model of the combination, alone in its own assembly plan.
   // P times the eigen-projection per hinge (the default Gauss-Newton projection needs no eigen-solve).
-  typename models::HingeBending<Angle>::Params prm;
-  prm.projection = models::BendingProjection::eigen;
-  models::HingeBending<Angle> model(scene, prm);
+  models::HingeBending<Angle> model(scene, {.projection = models::BendingProjection::eigen});
   r.hinges = model.num_hinges();
   r.lone = model.num_lone_triangles();
   AssemblyPlan plan;

@@ -129,12 +129,7 @@ struct LinearBenchSimulation::Models {
   AssemblyPlan plan;
   ElementBuffer buf;
   // Bending projected per hinge by eigen-decomposition: the systems of bench/results/table-11-1.
-  static models::HingeBending<models::ThetaEnergy>::Params eigen_projection() {
-    models::HingeBending<models::ThetaEnergy>::Params p;
-    p.projection = models::BendingProjection::eigen;
-    return p;
-  }
-  Models(const Scene& s) : membrane(s, {}), bending(s, eigen_projection()) {}
+  Models(const Scene& s) : membrane(s, {}), bending(s, {.projection = models::BendingProjection::eigen}) {}
 };
 
 LinearBenchSimulation::LinearBenchSimulation(const ExampleConfig& cfg) : cfg_(cfg) {

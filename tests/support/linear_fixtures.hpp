@@ -85,9 +85,7 @@ inline ClothSystem cloth_system(int m, Tessellation t = Tessellation::regular, P
   }
   models::StvkMembrane<models::Isotropic> membrane(scene, {});
   // The eigen-projection of each hinge: the systems whose iteration counts are recorded.
-  models::HingeBending<models::ThetaEnergy>::Params bending_prm;
-  bending_prm.projection = models::BendingProjection::eigen;
-  models::HingeBending<models::ThetaEnergy> bending(scene, bending_prm);
+  models::HingeBending<models::ThetaEnergy> bending(scene, {.projection = models::BendingProjection::eigen});
   AssemblyPlan plan;
   membrane.declare(plan);
   bending.declare(plan);
