@@ -155,6 +155,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
   w.resize(Amat.rows());
   rep.iterations = 0;
   rep.indefinite = false;
+  w.preconditioner_breakdown = false;
   rep.residual_history.clear();
   rep.residual_history.reserve(static_cast<std::size_t>(std::min(opt.max_iterations, 100000)) + 1);
   rep.convergence_rate = 0;
@@ -181,6 +182,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
       return;
     }
     rep.residual_history.push_back(1.0);
+    w.preconditioner_breakdown = true;
     return stop(Status::numerical_issue,
                 fmt::format("PCG breakdown at iteration 0: r^T B r = {:.3e} <= 0 for r != 0, the preconditioner is not "
                             "positive definite (methods/multigrid §6.2: check its smoother interval and symmetry)",
@@ -212,6 +214,7 @@ void pcg(const BlockCsr& Amat, const Eigen::VectorXd& b, Eigen::VectorXd& x, con
     }
     if (delta_new <= 0 && !(delta_new == 0 && dot(w.r, w.r) == 0)) {
       rep.residual_history.push_back(0.0);
+      w.preconditioner_breakdown = true;
       return stop(Status::numerical_issue,
                   fmt::format("PCG breakdown at iteration {}: r^T B r = {:.3e} <= 0 for r != 0, the preconditioner is "
                               "not positive definite (methods/multigrid §6.2: check its smoother interval and symmetry)",

@@ -148,6 +148,7 @@ struct PrecondView {
 /// Work vectors of the CG loop, allocated once per size.
 struct KrylovWork {
   Eigen::VectorXd r, z, p, q;
+  bool preconditioner_breakdown = false;  ///< the last `pcg` stopped on r^T B r <= 0 for r != 0
   void resize(Eigen::Index n);
   std::size_t bytes() const { return sizeof(double) * static_cast<std::size_t>(r.size() + z.size() + p.size() + q.size()); }
 };
@@ -190,6 +191,12 @@ class PreconditionerSlot {
   bool proves_indefinite() const;
   /// Number of builds since construction (tests of the setup policy).
   int builds() const { return builds_; }
+  /// After a preconditioner breakdown: whether P could make itself SPD again (SaAmg widens
+  /// its smoothers' intervals to a guaranteed bound); the solve is then repeated once.
+  bool recover_from_breakdown() {
+    if constexpr (requires { { p_.widen_smoothers() } -> std::same_as<bool>; }) return p_.widen_smoothers();
+    else return false;
+  }
 
  private:
   P p_;

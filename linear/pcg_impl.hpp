@@ -155,18 +155,29 @@ LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x)
   {
     ScopedTimer t(rep.solve_seconds);
     // x0 = z on the constrained directions; the free part is 0 or (warm start) S x_in.
-    if (prm_.warm_start && x.size() == b.size()) {
-      if (c) {
-        c->filter(x);
-        x += c->target();
+    const Eigen::VectorXd x_in = prm_.warm_start && x.size() == b.size() ? x : Eigen::VectorXd();
+    auto start = [&] {
+      if (x_in.size() > 0) {
+        x = x_in;
+        if (c) {
+          c->filter(x);
+          x += c->target();
+        }
+      } else if (c) {
+        x = c->target();
+      } else {
+        x.setZero(b.size());
       }
-    } else if (c) {
-      x = c->target();
-    } else {
-      x.setZero(b.size());
-    }
+    };
+    start();
     work_.resize(b.size());
     detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {tolerance(), prm_.max_iterations}, work_, rep);
+    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown()) {
+      const int spent = rep.iterations;
+      start();
+      detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {tolerance(), prm_.max_iterations}, work_, rep);
+      rep.iterations += spent;
+    }
   }
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
   rep.memory_bytes = filters_.bytes();
@@ -234,15 +245,27 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   {
     ScopedTimer t(rep.solve_seconds);
     // y0 = 0 (thesis fidelity) or, warm, S (x_in - z). y is iterated in x's storage.
-    if (prm_.warm_start && x.size() == b.size()) {
-      if (c) {
-        x -= c->target();
-        c->filter(x);
+    const Eigen::VectorXd x_in = prm_.warm_start && x.size() == b.size() ? x : Eigen::VectorXd();
+    auto start = [&] {
+      if (x_in.size() > 0) {
+        x = x_in;
+        if (c) {
+          x -= c->target();
+          c->filter(x);
+        }
+      } else {
+        x.setZero(b.size());
       }
-    } else {
-      x.setZero(b.size());
-    }
+    };
+    start();
     detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {tolerance(), prm_.max_iterations}, work_, rep, filter_);
+    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown()) {
+      const int spent = rep.iterations;
+      start();
+      const Eigen::VectorXd& chat_again = pre_.active() ? pre_.rhs(b, work_.r) : b;  // the solve overwrote it
+      detail::pcg(*Ahat_, chat_again, x, slot_.view(), nullptr, {tolerance(), prm_.max_iterations}, work_, rep, filter_);
+      rep.iterations += spent;
+    }
     pre_.finish(x);  // x = z + S y: constraints to round-off
   }
   rep.prefilter_seconds = pre_.take_seconds();

@@ -897,6 +897,47 @@ struct SaAmg::Impl {
   double nnz_scalar_total = 0, rows_scalar_total = 0;
 };
 
+namespace {
+
+/// ||D^-1 A||_inf with D the block diagonal of A as the operator reads it: an upper bound of
+/// the spectral radius of D^-1 A (every induced norm bounds it), so of lambda_max(D^-1 A).
+template <int B>
+double inf_norm_bound(const Level<B>& L) {
+  const auto A = L.A();
+  const int n = A.rows;
+  double g = 0;
+#pragma omp parallel for schedule(static) reduction(max : g) if (n > parallel_rows)
+  for (int i = 0; i < n; ++i) {
+    const int kd = find_block(A, i, i);
+    if (kd < 0) continue;
+    const Mat<B> Dinv = Mat<B>(A.block(i, kd)).inverse();
+    Eigen::Matrix<double, B, 1> row = Eigen::Matrix<double, B, 1>::Zero();
+    for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) row += (Dinv * A.block(i, k)).cwiseAbs().rowwise().sum();
+    if (row.allFinite()) g = std::max(g, row.maxCoeff());
+  }
+  return g;
+}
+
+}  // namespace
+
+bool SaAmg::widen_smoothers() {
+  if (!impl_->built) return false;
+  bool changed = false;
+  auto widen = [&](auto& L, int l) {
+    if (L.coarsest && L.direct != 0) return;  // solved exactly: no smoother
+    // The interval's top, chebyshev_upper * lambda, must cover lambda_max <= g.
+    const double lambda = inf_norm_bound(L) / prm_.chebyshev_upper;
+    if (!(lambda > L.lambda)) return;
+    L.lambda = lambda;
+    if (l < static_cast<int>(stats_.levels.size())) stats_.levels[l].lambda = lambda;
+    ++widened_;
+    changed = true;
+  };
+  widen(*impl_->fine, 0);
+  for (std::size_t l = 0; l < impl_->coarse.size(); ++l) widen(impl_->coarse[l], static_cast<int>(l) + 1);
+  return changed;
+}
+
 SaAmg::SaAmg(const Params& prm) : prm_(prm), impl_(std::make_unique<Impl>()) { validate(prm_).throw_if_failed(); }
 SaAmg::~SaAmg() = default;
 SaAmg::SaAmg(SaAmg&&) noexcept = default;

@@ -499,6 +499,15 @@ class SaAmg {
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& work) const;
   PreconditionerInfo info() const;
   const SaStats& stats() const { return stats_; }
+  /// After a PCG breakdown r^T B r <= 0: the Lanczos estimate of lambda_max(D_l^-1 A_l) fell
+  /// below the true value on some level (a few stiff, localised modes, e.g. barrier pairs),
+  /// so the Chebyshev polynomial goes negative there and the cycle is indefinite. Raises each
+  /// level's lambda until the interval's top chebyshev_upper * lambda reaches the guaranteed
+  /// bound ||D_l^-1 A_l||_inf >= lambda_max (Gershgorin on D^-1 A), which makes every smoother,
+  /// and so the cycle, SPD again (methods/multigrid §5.2, Appendix A). Returns whether any level changed; the next setup estimates afresh.
+  bool widen_smoothers();
+  /// Levels widened by `widen_smoothers` since construction.
+  int widened_levels() const { return widened_; }
 
   // Inspection (tests and benchmarks).
   int levels() const;
@@ -513,6 +522,7 @@ class SaAmg {
   struct Impl;  // the levels (sa_amg.cpp)
   Params prm_;
   SaStats stats_;
+  int widened_ = 0;
   std::unique_ptr<Impl> impl_;
 };
 
