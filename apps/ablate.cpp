@@ -33,13 +33,13 @@ bool direct(const ComboInfo& c) { return c.linear == "direct" || c.linear == "ba
 /// The reference combination: the scene's own when it solves directly, else the
 /// combination with the same energy, integrator and contact and a direct solver.
 std::string default_reference(const Scene& scene) {
-  const ComboInfo* own = find_combo(scene.spec.combo);
-  if (!own || direct(*own)) return scene.spec.combo;
+  const ComboInfo& own = resolve_combo(scene);
+  if (direct(own)) return std::string(own.key);
   for (const ComboInfo& c : combos())
-    if (direct(c) && c.energy == own->energy && c.integrator == own->integrator && c.contact == own->contact &&
+    if (direct(c) && c.energy == own.energy && c.integrator == own.integrator && c.contact == own.contact &&
         not_applicable_reason(c, scene).empty())
       return std::string(c.key);
-  return scene.spec.combo;
+  return std::string(own.key);
 }
 
 /// Penetrations of a state, by checks independent of the detection code: rod overlaps and
@@ -208,13 +208,13 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
     if (!problems.empty()) throw ConfigError(fmt::format("{}: cannot ablate", opt.scene), problems);
     for (const std::string& n : names) {
       std::vector<std::string> ov = opt.overrides;
-      ov.push_back("combo=" + n);
+      append_combo_overrides(ov, n);
       if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
       make_simulator(load_scene(opt.scene, ov));
     }
     reference = opt.reference.empty() ? default_reference(scene) : opt.reference;
     ref_ov = opt.overrides;
-    ref_ov.push_back("combo=" + reference);
+    append_combo_overrides(ref_ov, reference);
     if (opt.duration > 0) ref_ov.push_back(fmt::format("time.duration={}", opt.duration));
     ref_ov.push_back(fmt::format("time.dt={}", scene.spec.time.dt / opt.reference_substeps));
     make_simulator(load_scene(opt.scene, ref_ov));
@@ -265,7 +265,7 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
   std::vector<AblateRow> rows;
   for (const std::string& n : names) {
     std::vector<std::string> ov = opt.overrides;
-    ov.push_back("combo=" + n);
+    append_combo_overrides(ov, n);
     if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
     Json h;
     rows.push_back(run_one(opt.scene, ov, &ref, nullptr, size, h, opt.quiet));

@@ -157,7 +157,7 @@ std::vector<Case> read_suite(const BenchContactOptions& opt) {
     for (const std::string& combo : combos) {
       Case k = base;
       for (const std::string& o : opt.overrides) k.overrides.push_back(o);
-      if (!combo.empty()) k.overrides.push_back("combo=" + combo);
+      if (!combo.empty()) append_combo_overrides(k.overrides, combo);
       if (opt.steps > 0) k.steps = opt.steps;
       if (opt.skip > 0) k.skip = opt.skip;
       cases.push_back(std::move(k));
@@ -208,7 +208,7 @@ int bench_contact(const BenchContactOptions& given) {
         k.name = fs::path(scene_path).stem().string();
         k.scene = scene_path;
         k.overrides = opt.overrides;
-        if (!opt.combo.empty()) k.overrides.push_back("combo=" + opt.combo);
+        if (!opt.combo.empty()) append_combo_overrides(k.overrides, opt.combo);
         if (!res.empty()) {
           const auto r = parse_resolution(res);
           k.overrides.push_back(fmt::format("cloths.0.mesh.resolution=[{},{}]", r[0], r[1]));
@@ -220,12 +220,9 @@ int bench_contact(const BenchContactOptions& given) {
     }
     for (Case& k : cases) {
       const Scene scene = load_scene(k.scene, k.overrides);
-      const ComboInfo* combo = nullptr;
-      for (const auto& c : combos())
-        if (c.key == scene.spec.combo) combo = &c;
-      if (!combo) throw ConfigError(fmt::format("unknown combination '{}' (see `weft list`)", scene.spec.combo));
-      const std::string why = not_applicable_reason(*combo, scene);
-      if (!why.empty()) throw ConfigError(fmt::format("{} does not apply to {}: {}", scene.spec.combo, k.scene, why));
+      const ComboInfo& combo = resolve_combo(scene);
+      const std::string why = not_applicable_reason(combo, scene);
+      if (!why.empty()) throw ConfigError(fmt::format("{} does not apply to {}: {}", combo.key, k.scene, why));
       if (scene.mesh.num_faces() == 0) throw ConfigError(fmt::format("{}: bench contact needs a cloth scene", k.scene));
       const int scene_steps = static_cast<int>(std::lround(scene.spec.time.duration / scene.spec.time.dt));
       if (k.steps <= 0) k.steps = opt.quick ? 4 : std::max(1, scene_steps - k.skip);
@@ -335,7 +332,7 @@ int bench_contact(const BenchContactOptions& given) {
                            st[Stage::line_search];
       Json rec{{"record", "step"},
                {"case", k.name},
-               {"combo", scene.spec.combo},
+               {"combo", std::string(sim->combo())},
                {"resolution", res_label},
                {"step", r.step},
                {"counted", s > k.skip},
@@ -402,7 +399,7 @@ int bench_contact(const BenchContactOptions& given) {
     csv << fmt::format(
         "{},{},{},{},{},{},{},{:.6e},{:.6e},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.2f},{},{},{:.2f},{:.2f},"
         "{:.3f},{:.2f},{:.3f},{:.3f},{:.3f},{:.2f},{:.3e},{},{},{},{:.6e},{:.6e},{},{:.2f},{:.4f},{},{},{},{:.3e},{:.3e},{}\n",
-        scene_name, scene.spec.combo, res_label, V, F, k.skip + 1, tot.steps, tot.per_step(tot.wall), tot.median_step(),
+        scene_name, sim->combo(), res_label, V, F, k.skip + 1, tot.steps, tot.per_step(tot.wall), tot.median_step(),
         tot.share(tot.detection), tot.share(tot.response), tot.share(tot.solve), tot.share(tot.contact_stage),
         tot.share(tot.energy), tot.share(tot.hessian), tot.share(tot.linear_setup), tot.share(tot.linear_solve),
         tot.per_step(tot.contacts), tot.max_contacts, tot.contact_steps, tot.per_step(tot.obstacle_contacts),
@@ -416,7 +413,7 @@ int bench_contact(const BenchContactOptions& given) {
     jl << Json{{"record", "resolution"},
                {"case", k.name},
                {"scene", scene_name},
-               {"combo", scene.spec.combo},
+               {"combo", std::string(sim->combo())},
                {"overrides", k.overrides},
                {"resolution", res_label},
                {"vertices", V},
@@ -460,7 +457,7 @@ int bench_contact(const BenchContactOptions& given) {
     jl.flush();
     if (suite)
       fmt::print("| {} | {} | {} | {} | {:.4g} | {:.4g} | {:.4g} | {:.2f} | {:.1f} | {:.1f} | {:.1f}% | {:.1f}% | {} | {} | {:.3g} m | {} |\n",
-                 k.name, scene.spec.combo, V, tot.steps, tot.per_step(tot.wall), p95, max_step, tot.per_step(tot.newton),
+                 k.name, sim->combo(), V, tot.steps, tot.per_step(tot.wall), p95, max_step, tot.per_step(tot.newton),
                  linear_per_newton, tot.per_step(tot.contacts), 100 * tot.share(tot.solve), 100 * tot.share(tot.detection),
                  intersecting_steps, crossing_steps, deepest_obstacle, completed ? "yes" : status);
     else

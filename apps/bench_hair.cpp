@@ -378,16 +378,12 @@ int bench_hair(const BenchHairOptions& opt) {
         if (!(dt > 0)) throw ConfigError(fmt::format("--dt {}: time steps must be > 0", dt));
         std::vector<std::string> ov = opt.overrides;
         if (opt.quick) ov.push_back("rods.0.count=8");
-        ov.push_back("combo=" + s);
+        append_combo_overrides(ov, s);
         ov.push_back(fmt::format("time.dt={}", dt));
         ov.push_back(fmt::format("time.frame_rate={}", 1.0 / dt));  // one step per frame: any dt divides it
         ov.push_back(whole_steps_duration(scene_path, opt.overrides, dt, duration));
         const Scene scene = load_scene(scene_path, ov);
-        const ComboInfo* combo = nullptr;
-        for (const auto& c : combos())
-          if (c.key == scene.spec.combo) combo = &c;
-        if (!combo) throw ConfigError(fmt::format("unknown combination '{}' (see `weft list`)", s));
-        const std::string why = not_applicable_reason(*combo, scene);
+        const std::string why = not_applicable_reason(resolve_combo(scene), scene);
         if (!why.empty()) throw ConfigError(fmt::format("{} does not apply to {}: {}", s, scene_path, why));
         rods = scene.rods.num_rods();
         vertices = rods ? scene.rods.rod_vertices(0) : 0;

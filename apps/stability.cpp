@@ -73,7 +73,7 @@ StabilityResult run_cell(const StabilityOptions& opt, const std::string& combo, 
     // dt <= 1/frame_rate makes any dt valid; the scene caps the frame rate (10^4 /s), and no
     // frame is written here, so steps below 1 ms run at 1000 frames per second.
     ov.push_back(fmt::format("time.frame_rate={}", std::min(1.0 / dt, 1000.0)));
-    if (!combo.empty()) ov.push_back("combo=" + combo);
+    if (!combo.empty()) append_combo_overrides(ov, combo);
     if (!opt.vary_key.empty()) ov.push_back(opt.vary_key + "=" + value);
     sim = make_simulator(load_scene(opt.scene, ov));
   } catch (const ConfigError& e) {
@@ -138,7 +138,7 @@ int run_stability(const StabilityOptions& opt, std::vector<StabilityResult>* out
     for (const auto& c : opt.combos) {
       if (c.empty()) continue;
       std::vector<std::string> ov = opt.overrides;
-      ov.push_back("combo=" + c);
+      append_combo_overrides(ov, c);
       make_simulator(load_scene(opt.scene, ov));
     }
   } catch (const ConfigError& e) {

@@ -463,6 +463,15 @@ Scene build_scene(const Json& doc, const std::string& base_dir, const std::strin
       scene.solver[k] = rest[k];
       rest.erase(k);
     }
+  if (scene.solver.contains("linear") && scene.solver["linear"].is_object() && scene.solver["linear"].contains("solver")) {
+    const Json& v = scene.solver["linear"]["solver"];
+    if (v.is_string() && !v.get<std::string>().empty())
+      scene.linear_solver = v.get<std::string>();
+    else
+      errors.push_back(fmt::format("linear.solver = {}: a solver name is expected (see `weft list`)", v.dump()));
+    scene.solver["linear"].erase("solver");
+    if (scene.solver["linear"].empty()) scene.solver.erase("linear");  // rods read no linear section
+  }
   {
     JsonReader r(rest, "", errors);
     scene.spec.visit(r);

@@ -384,6 +384,10 @@ struct Scene {
   SceneSpec spec;
   std::string path;                 ///< scene file ("" if built in code)
   Json solver;                      ///< the "energy", "integrator", "contact", "linear" sections
+  /// `linear.solver`: the linear solver of the Newton systems, chosen among the pre-built
+  /// siblings of `spec.combo` (policies/registry.hpp, `resolve_combo`); "" keeps the combo's
+  /// own. Taken out of `solver["linear"]`, whose keys are the chosen solver's parameters.
+  std::string linear_solver;
   TriangleMesh mesh;                ///< all cloths, concatenated (empty without cloths)
   RodSet rods;                      ///< all rods, generated from `spec.rods`
   std::vector<int> cloth_vertex_offset;  ///< #cloths+1: vertex range of each cloth

@@ -48,6 +48,8 @@ using ClothLieDirect = Simulator<ClothTheta, integrators::LinearlyImplicit, cont
 using ClothIpDiagPcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPcg>;
 using ClothIpSaPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaPpcg>;
 using ClothLieSaPpcg = Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::SaPpcg>;
+using ClothIpDiagPpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPpcg>;
+using ClothIpSaMpcg = Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaMpcg>;
 
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
 extern template class Simulator<ClothTan, integrators::IncrementalPotential, contact::NoContact, linear::Direct>;
@@ -65,5 +67,7 @@ extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, conta
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPcg>;
 extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaPpcg>;
 extern template class Simulator<ClothTheta, integrators::LinearlyImplicit, contact::NoContact, linear::SaPpcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::DiagPpcg>;
+extern template class Simulator<ClothTheta, integrators::IncrementalPotential, contact::NoContact, linear::SaMpcg>;
 
 }  // namespace weft

@@ -1,5 +1,6 @@
 #include "policies/registry.hpp"
 
+#include <array>
 #include <map>
 #include <set>
 
@@ -41,6 +42,10 @@
     "diag_pcg", "as cloth_ip_direct with block-Jacobi PCG (the thesis' Diag-PCG baseline, ch. 11)")          \
   X(cloth_ip_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
     "sa_ppcg", "as cloth_ip_direct with smoothed-aggregation prefiltered PCG (thesis ch. 11): large cloth")  \
+  X(cloth_ip_diag_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
+    "diag_ppcg", "as cloth_ip_direct with prefiltered PCG and block Jacobi of the prefiltered matrix")        \
+  X(cloth_ip_sa_mpcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
+    "sa_mpcg", "as cloth_ip_sa_ppcg with SA built from the unfiltered matrix inside modified PCG (the ablation of thesis Fig. 11.8)") \
   X(cloth_lie_sa_ppcg, "membrane(stvk, isotropic) + bending(theta) + gravity", "linearly_implicit", "none",   \
     "sa_ppcg", "Baraff-Witkin linearly implicit Euler with SA+PPCG: the thesis' chapter-11 simulator")          \
   X(rods_none, "discrete_elastic_rod + gravity", "rod_backward_euler", "none", "banded_lu",                     \
@@ -54,20 +59,39 @@
   X(rods_staggered, "discrete_elastic_rod + gravity", "rod_backward_euler", "staggered_projections", "banded_lu", \
     "nonlinear staggered projections: alternating contact and friction problems inside Newton (thesis ch. 8)")
 
+// The combinations of the optional back ends, in the table only when built with them.
+#ifdef WEFT_WITH_CHOLMOD
+#define WEFT_CHOLMOD_COMBOS(X)                                                                                    \
+  X(cloth_ip_cholmod, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none",  \
+    "cholmod", "as cloth_ip_direct with CHOLMOD's supernodal Cholesky (-DWEFT_WITH_CHOLMOD=ON)")                  \
+  X(cloth_ip_barrier_cholmod, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential",  \
+    "barrier", "cholmod", "as cloth_ip_barrier_direct with CHOLMOD's supernodal Cholesky (-DWEFT_WITH_CHOLMOD=ON)")
+#else
+#define WEFT_CHOLMOD_COMBOS(X)
+#endif
+#ifdef WEFT_WITH_PETSC
+#define WEFT_PETSC_COMBOS(X)                                                                                     \
+  X(cloth_ip_petsc_gamg, "membrane(stvk, isotropic) + bending(theta) + gravity", "incremental_potential", "none", \
+    "petsc_gamg", "as cloth_ip_sa_ppcg with PETSc CG + GAMG on the prefiltered matrix (-DWEFT_WITH_PETSC=ON)")
+#else
+#define WEFT_PETSC_COMBOS(X)
+#endif
+#define WEFT_ALL_COMBOS(X) WEFT_COMBO_TABLE(X) WEFT_CHOLMOD_COMBOS(X) WEFT_PETSC_COMBOS(X)
+
 namespace weft {
 
 namespace combo_factories {
 #define WEFT_DECLARE(key, ...)                               \
   std::unique_ptr<AnySimulator> make_##key(const Scene&); \
   std::vector<PolicyDoc> docs_##key();
-WEFT_COMBO_TABLE(WEFT_DECLARE)
+WEFT_ALL_COMBOS(WEFT_DECLARE)
 #undef WEFT_DECLARE
 }  // namespace combo_factories
 
 namespace {
 #define WEFT_ROW(key, energy, integrator, contact, linear, description) \
   ComboInfo{#key, energy, integrator, contact, linear, description, &combo_factories::make_##key, &combo_factories::docs_##key},
-const ComboInfo table[] = {WEFT_COMBO_TABLE(WEFT_ROW)};
+const ComboInfo table[] = {WEFT_ALL_COMBOS(WEFT_ROW)};
 #undef WEFT_ROW
 }  // namespace
 
@@ -104,17 +128,82 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene) {
   return {};
 }
 
-std::unique_ptr<AnySimulator> make_simulator(const Scene& scene) {
+namespace {
+
+/// The values of `linear.solver`, with the CMake option of those that are optional back ends.
+struct SolverName {
+  std::string_view name, cmake_option;
+};
+constexpr SolverName solver_names[] = {{"auto", ""},         {"direct", ""},   {"cholmod", "WEFT_WITH_CHOLMOD"},
+                                       {"diag_pcg", ""},     {"diag_ppcg", ""}, {"sa_ppcg", ""},
+                                       {"sa_mpcg", ""},      {"petsc_gamg", "WEFT_WITH_PETSC"}, {"banded_lu", ""}};
+
+bool same_family(const ComboInfo& a, const ComboInfo& b) {
+  return a.energy == b.energy && a.integrator == b.integrator && a.contact == b.contact;
+}
+
+const ComboInfo* sibling(const ComboInfo& own, std::string_view linear) {
   for (const auto& c : table)
-    if (c.key == scene.spec.combo) {
-      const std::string why = not_applicable_reason(c, scene);
-      if (!why.empty()) throw ConfigError(fmt::format("{}: invalid scene", scene.path), {fmt::format("combo = \"{}\": {}", c.key, why)});
-      return c.make(scene);
-    }
-  std::string names;
-  for (const auto& c : table) names += (names.empty() ? "" : ", ") + std::string(c.key);
-  throw ConfigError(fmt::format("{}: invalid scene", scene.path),
-                    {fmt::format("combo = \"{}\" is not a pre-built combination: valid are {}", scene.spec.combo, names)});
+    if (same_family(c, own) && c.linear == linear) return &c;
+  return nullptr;
+}
+
+}  // namespace
+
+std::string_view auto_linear_solver(const ComboInfo& combo, const Scene& scene) {
+  const bool large = scene.mesh.num_vertices() >= auto_iterative_min_vertices;
+  const std::array<std::string_view, 2> order = large ? std::array<std::string_view, 2>{"sa_ppcg", "direct"}
+                                                      : std::array<std::string_view, 2>{"direct", "sa_ppcg"};
+  for (std::string_view pick : order)
+    if (sibling(combo, pick)) return pick;
+  return combo.linear;
+}
+
+const ComboInfo& resolve_combo(const Scene& scene) {
+  const std::string header = fmt::format("{}: invalid scene", scene.path);
+  const ComboInfo* own = nullptr;
+  for (const auto& c : table)
+    if (c.key == scene.spec.combo) own = &c;
+  if (!own) {
+    std::string names;
+    for (const auto& c : table) names += (names.empty() ? "" : ", ") + std::string(c.key);
+    throw ConfigError(header, {fmt::format("combo = \"{}\" is not a pre-built combination: valid are {}", scene.spec.combo, names)});
+  }
+  if (scene.linear_solver.empty()) return *own;
+  const SolverName* known = nullptr;
+  for (const auto& n : solver_names)
+    if (n.name == scene.linear_solver) known = &n;
+  if (!known) {
+    std::string names;
+    for (const auto& n : solver_names) names += (names.empty() ? "" : ", ") + std::string(n.name);
+    throw ConfigError(header, {fmt::format("linear.solver = \"{}\" is not a linear solver: valid are {}", scene.linear_solver, names)});
+  }
+  const std::string_view want = known->name == "auto" ? auto_linear_solver(*own, scene) : known->name;
+  if (const ComboInfo* c = sibling(*own, want)) return *c;
+  std::string have;
+  for (const auto& c : table)
+    if (same_family(c, *own)) have += fmt::format("{}{} ({})", have.empty() ? "" : ", ", c.linear, c.key);
+  const bool missing_backend = !known->cmake_option.empty();
+  throw ConfigError(header, {missing_backend
+                                 ? fmt::format("linear.solver = \"{}\": this build has no {} back end; configure with -D{}=ON "
+                                               "(`./scripts/test.sh --backends` builds one in build/backends)",
+                                               want, want, known->cmake_option)
+                                 : fmt::format("linear.solver = \"{}\": no pre-built combination has the energy, integrator and "
+                                               "contact of combo = \"{}\" with this solver; the pre-built ones are {}",
+                                               want, own->key, have)});
+}
+
+void append_combo_overrides(std::vector<std::string>& overrides, std::string_view key) {
+  overrides.push_back(fmt::format("combo={}", key));
+  for (const auto& c : table)
+    if (c.key == key) overrides.push_back(fmt::format("linear.solver={}", c.linear));
+}
+
+std::unique_ptr<AnySimulator> make_simulator(const Scene& scene) {
+  const ComboInfo& c = resolve_combo(scene);
+  const std::string why = not_applicable_reason(c, scene);
+  if (!why.empty()) throw ConfigError(fmt::format("{}: invalid scene", scene.path), {fmt::format("combo = \"{}\": {}", c.key, why)});
+  return c.make(scene);
 }
 
 std::string scene_reference() {
@@ -134,6 +223,19 @@ std::string scene_reference() {
   spec.visit(w);
   for (const auto& r : rows) out += r + "\n";
   out += "\n## Solver sections\n\nEach combination (`weft list`) reads the sections of its own policies.\n";
+  {
+    std::string names;
+    for (const auto& n : solver_names) names += fmt::format("{}`{}`", names.empty() ? "" : ", ", n.name);
+    out += fmt::format(
+        "\n`linear.solver` (string; default: the combination's own) swaps the linear solver: the scene runs the\n"
+        "pre-built combination with the same energy, integrator and contact and this solver (the\n"
+        "Combinations table below). Valid: {}. `auto` takes a sparse direct solver below {} cloth\n"
+        "vertices and SA+PPCG from there on, among the solvers the family has. `cholmod` and\n"
+        "`petsc_gamg` need a build with `-DWEFT_WITH_CHOLMOD=ON` or `-DWEFT_WITH_PETSC=ON`; a scene\n"
+        "that asks for a solver the build or the family lacks is refused (exit 2) with the list of\n"
+        "those it has. The other keys of `linear` are the chosen solver's.\n",
+        names, auto_iterative_min_vertices);
+  }
   std::set<std::pair<std::string, std::string>> seen;
   for (const auto& c : table)
     for (const auto& d : c.docs()) {
