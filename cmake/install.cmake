@@ -24,6 +24,10 @@ if(TARGET weft_petsc_gamg)
   set_target_properties(weft_petsc_gamg PROPERTIES EXPORT_NAME petsc_gamg)
   list(APPEND weft_backend_targets weft_petsc_gamg)
 endif()
+if(TARGET weft_policies_backends)  # the back ends' pre-built combinations (policies/CMakeLists.txt)
+  set_target_properties(weft_policies_backends PROPERTIES EXPORT_NAME policies_backends)
+  list(APPEND weft_backend_targets weft_policies_backends)
+endif()
 
 # weft::weft: the whole library, as a user's project links it.
 add_library(weft_all INTERFACE)
