@@ -35,10 +35,8 @@ bool direct(const ComboInfo& c) { return c.linear == "direct" || c.linear == "ba
 std::string default_reference(const Scene& scene) {
   const ComboInfo& own = resolve_combo(scene);
   if (direct(own)) return std::string(own.key);
-  for (const ComboInfo& c : combos())
-    if (direct(c) && c.energy == own.energy && c.integrator == own.integrator && c.contact == own.contact &&
-        not_applicable_reason(c, scene).empty())
-      return std::string(c.key);
+  for (std::string_view solver : {"direct", "banded_lu"})
+    if (const ComboInfo* c = sibling(own, solver); c && not_applicable_reason(*c, scene).empty()) return std::string(c->key);
   return std::string(own.key);
 }
 

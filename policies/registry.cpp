@@ -1,5 +1,6 @@
 #include "policies/registry.hpp"
 
+#include <algorithm>
 #include <array>
 #include <map>
 #include <set>
@@ -142,13 +143,13 @@ bool same_family(const ComboInfo& a, const ComboInfo& b) {
   return a.energy == b.energy && a.integrator == b.integrator && a.contact == b.contact;
 }
 
+}  // namespace
+
 const ComboInfo* sibling(const ComboInfo& own, std::string_view linear) {
   for (const auto& c : table)
     if (same_family(c, own) && c.linear == linear) return &c;
   return nullptr;
 }
-
-}  // namespace
 
 std::string_view auto_linear_solver(const ComboInfo& combo, const Scene& scene) {
   const bool large = scene.mesh.num_vertices() >= auto_iterative_min_vertices;
@@ -183,7 +184,9 @@ const ComboInfo& resolve_combo(const Scene& scene) {
   std::string have;
   for (const auto& c : table)
     if (same_family(c, *own)) have += fmt::format("{}{} ({})", have.empty() ? "" : ", ", c.linear, c.key);
-  const bool missing_backend = !known->cmake_option.empty();
+  // A back end this build lacks: no combination at all has it (else the family lacks it).
+  const bool missing_backend =
+      !known->cmake_option.empty() && std::none_of(std::begin(table), std::end(table), [&](const ComboInfo& c) { return c.linear == want; });
   throw ConfigError(header, {missing_backend
                                  ? fmt::format("linear.solver = \"{}\": this build has no {} back end; configure with -D{}=ON "
                                                "(`./scripts/test.sh --backends` builds one in build/backends)",

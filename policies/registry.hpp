@@ -44,6 +44,10 @@ std::string not_applicable_reason(const ComboInfo& combo, const Scene& scene);
 /// family without that solver (listing the solvers it has).
 const ComboInfo& resolve_combo(const Scene& scene);
 
+/// The combination of `own`'s energy, integrator and contact with linear solver `linear`
+/// (nullptr: none is pre-built).
+const ComboInfo* sibling(const ComboInfo& own, std::string_view linear);
+
 /// `linear.solver = auto`: below this many cloth vertices a sparse direct solver, from it on
 /// SA+PPCG (bench/results/linear-choice: where the two cross on the shipped scenes).
 inline constexpr int auto_iterative_min_vertices = 400;

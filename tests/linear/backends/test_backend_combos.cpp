@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "framework/error.hpp"
 #include "framework/scene.hpp"
 #include "policies/registry.hpp"
 
@@ -59,6 +60,18 @@ TEST_SUITE("backends") {
     Scene barrier = swinging_sheet("cholmod");
     barrier.spec.combo = "cloth_ip_barrier_direct";
     CHECK(resolve_combo(barrier).key == "cloth_ip_barrier_cholmod");
+    // A family without CHOLMOD in a build that has it: the family is named, not the build.
+    Scene impulse = swinging_sheet("cholmod");
+    impulse.spec.combo = "cloth_ip_impulse_direct";
+    try {
+      resolve_combo(impulse);
+      FAIL("cholmod for the impulse family was accepted");
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      CAPTURE(what);
+      CHECK(what.find("no pre-built combination has the energy, integrator and contact") != std::string::npos);
+      CHECK(what.find("back end") == std::string::npos);
+    }
 #endif
   }
 }
