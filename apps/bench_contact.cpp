@@ -259,7 +259,7 @@ int bench_contact(const BenchContactOptions& given) {
          "ccd_hits_per_step,impulses_per_step,impact_zones_per_step,zone_iterations_per_step,newton_per_step,"
          "linear_per_step,max_penetration_m,intersections,status,case,p95_step_s,max_step_s,max_newton,"
          "linear_per_newton,line_search_share,intersecting_steps,obstacle_crossing_steps,max_obstacle_crossings,"
-         "deepest_obstacle_penetration_m,min_gap_m,completed\n";
+         "deepest_obstacle_penetration_m,min_gap_m,completed,subdivided_steps\n";
   csv.flush();
 
   const std::string title = suite ? suite_path(opt.suite).stem().string() : cases.front().name;
@@ -273,8 +273,8 @@ int bench_contact(const BenchContactOptions& given) {
                cases.front().skip + 1, cases.front().skip + cases.front().steps, cases.front().skip);
   if (suite) {
     fmt::print("| case | combo | vertices | steps | s/step | p95 | max | Newton/step | linear/Newton | contacts/step | solve "
-               "| detection | cloth-cloth | obstacle crossings | deepest | completed |\n");
-    fmt::print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+               "| detection | cloth-cloth | obstacle crossings | deepest | substepped | completed |\n");
+    fmt::print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   } else {
     fmt::print("| resolution | vertices | s/step | detection | response | solve | contacts/step | CCD hits/step | impact zones/step "
                "| Newton/step | linear it./step | intersections | status |\n");
@@ -291,7 +291,7 @@ int bench_contact(const BenchContactOptions& given) {
     auto sim = make_simulator(scene);
     Totals tot;
     if (check) tot.intersections = 0;
-    int intersecting_steps = 0, crossing_steps = 0, max_newton = 0;
+    int intersecting_steps = 0, crossing_steps = 0, max_newton = 0, subdivided = 0;
     std::int64_t max_crossings = 0;
     double deepest_obstacle = 0, min_gap = 0;
     std::string status = "ok";
@@ -386,6 +386,7 @@ int bench_contact(const BenchContactOptions& given) {
       tot.newton += r.newton.iterations;
       tot.linear += r.linear.iterations;
       max_newton = std::max(max_newton, r.newton.iterations);
+      if (r.ok() && r.substeps > 1) ++subdivided;  // retried as substeps (time.max_subdivisions)
       tot.max_penetration = std::max(tot.max_penetration, cr.max_penetration);
       if (cr.barrier_pairs > 0 && (min_gap == 0 || cr.min_gap < min_gap)) min_gap = cr.min_gap;
     }
@@ -398,7 +399,7 @@ int bench_contact(const BenchContactOptions& given) {
     const std::string scene_name = fs::path(k.scene).stem().string();
     csv << fmt::format(
         "{},{},{},{},{},{},{},{:.6e},{:.6e},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.2f},{},{},{:.2f},{:.2f},"
-        "{:.3f},{:.2f},{:.3f},{:.3f},{:.3f},{:.2f},{:.3e},{},{},{},{:.6e},{:.6e},{},{:.2f},{:.4f},{},{},{},{:.3e},{:.3e},{}\n",
+        "{:.3f},{:.2f},{:.3f},{:.3f},{:.3f},{:.2f},{:.3e},{},{},{},{:.6e},{:.6e},{},{:.2f},{:.4f},{},{},{},{:.3e},{:.3e},{},{}\n",
         scene_name, sim->combo(), res_label, V, F, k.skip + 1, tot.steps, tot.per_step(tot.wall), tot.median_step(),
         tot.share(tot.detection), tot.share(tot.response), tot.share(tot.solve), tot.share(tot.contact_stage),
         tot.share(tot.energy), tot.share(tot.hessian), tot.share(tot.linear_setup), tot.share(tot.linear_solve),
@@ -408,7 +409,7 @@ int bench_contact(const BenchContactOptions& given) {
         tot.max_penetration, tot.intersections, csv_field(status), csv_field(k.name), p95, max_step, max_newton,
         linear_per_newton, tot.share(tot.line_search), check ? std::to_string(intersecting_steps) : "-1",
         check ? std::to_string(crossing_steps) : "-1", check ? std::to_string(max_crossings) : "-1", deepest_obstacle, min_gap,
-        completed ? 1 : 0);
+        completed ? 1 : 0, subdivided);
     csv.flush();
     jl << Json{{"record", "resolution"},
                {"case", k.name},
@@ -451,15 +452,16 @@ int bench_contact(const BenchContactOptions& given) {
                {"deepest_obstacle_penetration", deepest_obstacle},
                {"min_gap", min_gap},
                {"completed", completed},
+               {"subdivided_steps", subdivided},
                {"status", status}}
               .dump()
        << '\n';
     jl.flush();
     if (suite)
-      fmt::print("| {} | {} | {} | {} | {:.4g} | {:.4g} | {:.4g} | {:.2f} | {:.1f} | {:.1f} | {:.1f}% | {:.1f}% | {} | {} | {:.3g} m | {} |\n",
+      fmt::print("| {} | {} | {} | {} | {:.4g} | {:.4g} | {:.4g} | {:.2f} | {:.1f} | {:.1f} | {:.1f}% | {:.1f}% | {} | {} | {:.3g} m | {} | {} |\n",
                  k.name, sim->combo(), V, tot.steps, tot.per_step(tot.wall), p95, max_step, tot.per_step(tot.newton),
                  linear_per_newton, tot.per_step(tot.contacts), 100 * tot.share(tot.solve), 100 * tot.share(tot.detection),
-                 intersecting_steps, crossing_steps, deepest_obstacle, completed ? "yes" : status);
+                 intersecting_steps, crossing_steps, deepest_obstacle, subdivided, completed ? "yes" : status);
     else
       fmt::print("| {} | {} | {:.4g} | {:.1f}% | {:.1f}% | {:.1f}% | {:.1f} | {:.2f} | {:.2f} | {:.2f} | {:.1f} | {} | {} |\n",
                  res_label, V, tot.per_step(tot.wall), 100 * tot.share(tot.detection), 100 * tot.share(tot.response),

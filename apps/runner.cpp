@@ -405,6 +405,7 @@ int run_scene(const RunOptions& opt) {
   }
   long newton_total = 0, linear_total = 0;
   int newton_max = 0;
+  int subdivided = 0, deepest_subdivision = 0;  // steps retried as substeps (time.max_subdivisions)
   StageTimes stage_total;
   std::string status = "completed";
   Json failure;
@@ -516,6 +517,10 @@ int run_scene(const RunOptions& opt) {
     ++steps;
     newton_total += rep.newton.iterations;
     newton_max = std::max(newton_max, rep.newton.iterations);
+    if (rep.ok() && rep.substeps > 1) {
+      ++subdivided;
+      deepest_subdivision = std::max(deepest_subdivision, rep.subdivisions);
+    }
     linear_total += rep.linear.iterations;
     try {
       ScopedTimer t(rep.times, Stage::output);
@@ -609,6 +614,7 @@ int run_scene(const RunOptions& opt) {
                {"seconds_per_step", steps ? stage_total.total() / steps : 0.0},
                {"newton_iterations", {{"total", newton_total}, {"mean", steps ? double(newton_total) / steps : 0.0}, {"max", newton_max}}},
                {"linear_iterations", {{"total", linear_total}, {"mean_per_step", steps ? double(linear_total) / steps : 0.0}}},
+               {"subdivided_steps", {{"count", subdivided}, {"deepest", deepest_subdivision}}},
                {"stage_seconds", to_json(stage_total)},
                {"final_energy", energies},
                {"lapack", linear::lapack_library()},
@@ -636,8 +642,10 @@ int run_scene(const RunOptions& opt) {
     else spdlog::warn("{}", audit->line());
   }
   if (!opt.quiet && code == exit_ok)
-    spdlog::info("done: {} steps in {:.2f} s ({:.2f} ms/step), Newton {:.2f}/step (max {}), output in {}", steps, wall,
-                 1e3 * stage_total.total() / std::max(steps, 1), double(newton_total) / std::max(steps, 1), newton_max, dir.string());
+    spdlog::info("done: {} steps in {:.2f} s ({:.2f} ms/step), Newton {:.2f}/step (max {}){}, output in {}", steps, wall,
+                 1e3 * stage_total.total() / std::max(steps, 1), double(newton_total) / std::max(steps, 1), newton_max,
+                 subdivided ? fmt::format(", {} steps retried as substeps (down to dt/{})", subdivided, 1 << deepest_subdivision) : std::string(),
+                 dir.string());
   return code;
 }
 

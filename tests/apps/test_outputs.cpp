@@ -112,6 +112,36 @@ TEST_SUITE("apps") {
     CHECK(count_files(out, ".tmp") == 0);
   }
 
+  TEST_CASE("run: the summary counts the steps retried as substeps") {
+    // The hanging cloth at dt = 1/48 s: its first step needs 5 Newton iterations, its halves
+    // at most 4 (tests/integrators/test_step_subdivision.cpp); with a cap of 4 only the
+    // subdivision lets the run finish. The control, with the default cap, subdivides nothing.
+    const std::string scene = std::string(WEFT_SOURCE_DIR) + "/scenes/hanging_cloth.json";
+    const std::string common = "cloths.0.mesh.resolution=[11,11] combo=cloth_ip_direct time.dt=0.020833333333333332 "
+                               "time.duration=0.08333333333333333 time.max_subdivisions=3";
+    for (const int cap : {4, 100}) {
+      CAPTURE(cap);
+      const auto out = temp_dir(fmt::format("run_substeps_{}", cap));
+      const Result r = run_weft(fmt::format("run {} {} integrator.max_iterations={} --out {}", scene, common, cap, out.string()));
+      CAPTURE(r.output);
+      REQUIRE(r.code == 0);
+      const json summary = json::parse(slurp(out / "summary.json"));
+      const int count = summary["subdivided_steps"]["count"], deepest = summary["subdivided_steps"]["deepest"];
+      if (cap == 4) {
+        CHECK(count >= 1);
+        CHECK(deepest >= 1);
+        CHECK(r.output.find("retried as substeps") != std::string::npos);
+        int listed = 0;
+        for (const json& step : read_jsonl(out / "stats.jsonl")) listed += step.value("substeps", 1) > 1;
+        CHECK(listed == count);
+      } else {
+        CHECK(count == 0);
+        CHECK(deepest == 0);
+        CHECK(r.output.find("retried as substeps") == std::string::npos);
+      }
+    }
+  }
+
   TEST_CASE("run: SIGINT stops between steps - the summary says interrupted and the output is intact") {
     json s = small_scene();
     s["time"]["duration"] = 1000.0;
