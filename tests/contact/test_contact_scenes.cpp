@@ -1,6 +1,7 @@
 // The cloth-contact scenes (scenes/drape_sphere.json, drop_horizontal.json,
 // drop_vertical.json, stacked_sheets.json, twisted_sheet.json, incline_sheet.json), run from
-// the shipped files with overrides that make them small and short. After every step: the
+// the shipped files with overrides that make them small and short, under impulses (the
+// scenes ship the barrier, tested in test_barrier.cpp). After every step: the
 // step succeeded, no NaN, no cloth-cloth intersection (exact check of contact/verify,
 // independent of the detection code) and no free vertex closer to an obstacle than the
 // contact thickness h (1 - 1e-9), measured with signed distances written here, independent
@@ -30,6 +31,12 @@ using Eigen::Vector3d;
 using support::below;
 
 namespace {
+
+/// The scenes ship the barrier; these tests run their impulse contact (test_barrier.cpp runs
+/// the shipped combinations on shrunk versions of them), without the scenes' step
+/// subdivision, so that a failed step fails the test.
+const std::string impulses = "combo=cloth_ip_impulse_direct";
+const std::string whole_steps = "time.max_subdivisions=0";
 
 std::string scene_file(const std::string& name) {
   const char* root = std::getenv("WEFT_SOURCE_DIR");
@@ -233,8 +240,7 @@ TEST_SUITE("contact") {
 
   TEST_CASE("contact scenes: the drape rests on the sphere with its corners hanging down") {
     OneThread one;
-    const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[11,11]", "time.duration=1.0"});
-    REQUIRE(scene.spec.combo == "cloth_ip_impulse_direct");
+    const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[11,11]", "time.duration=1.0", impulses, whole_steps});
     auto sim = make_simulator(scene);
     const RunStats st = run_checked(*sim, contact_thickness(*sim));
     CHECK(st.contacts > 0);
@@ -260,7 +266,7 @@ TEST_SUITE("contact") {
     OneThread one;
     const int steps = 96;  // the cloth lands on the sphere near step 48
     auto run = [&](const std::string& combo, int max_steps, long long* contacts) {
-      const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[11,11]", "combo=" + combo});
+      const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[11,11]", "combo=" + combo, whole_steps});
       auto sim = make_simulator(scene);
       const RunStats st = run_checked(*sim, contact_thickness(*sim), max_steps);
       if (contacts) *contacts = st.contacts;
@@ -285,7 +291,7 @@ TEST_SUITE("contact") {
     const int n = 15;
     // Dropped from 1 cm instead of 5 cm: it lands after 0.04 s.
     const Scene scene = load_scene(scene_file("drop_horizontal.json"), {"cloths.0.mesh.resolution=[15,15]",
-                                                                        "cloths.0.mesh.center=[0,0,0.01]", "time.duration=0.4"});
+                                                                        "cloths.0.mesh.center=[0,0,0.01]", "time.duration=0.4", impulses, whole_steps});
     REQUIRE(scene.spec.obstacles.size() == 1);  // the box with a hole is one mesh
     auto sim = make_simulator(scene);
     const double h = contact_thickness(*sim);
@@ -307,7 +313,7 @@ TEST_SUITE("contact") {
   TEST_CASE("contact scenes: dropVertical buckles onto the box in self contact") {
     OneThread one;
     const Scene scene = load_scene(scene_file("drop_vertical.json"),
-                                   {"cloths.0.mesh.resolution=[13,13]", "time.duration=0.35"});
+                                   {"cloths.0.mesh.resolution=[13,13]", "time.duration=0.35", impulses, whole_steps});
     auto sim = make_simulator(scene);
     const double top0 = sim->state().x(Eigen::seqN(2, sim->state().num_vertices(), 3)).maxCoeff();
     const RunStats st = run_checked(*sim, contact_thickness(*sim));
@@ -324,7 +330,7 @@ TEST_SUITE("contact") {
   TEST_CASE("contact scenes: stacked sheets come to rest with the upper sheet above the lower") {
     OneThread one;
     const Scene scene = load_scene(scene_file("stacked_sheets.json"),
-                                   {"cloths.0.mesh.resolution=[11,11]", "cloths.1.mesh.resolution=[9,9]", "time.duration=0.6"});
+                                   {"cloths.0.mesh.resolution=[11,11]", "cloths.1.mesh.resolution=[9,9]", "time.duration=0.6", impulses, whole_steps});
     auto sim = make_simulator(scene);
     double ke = 0, ke_max = 0;
     const RunStats st = run_checked(*sim, contact_thickness(*sim), 1 << 30, [&](const AnySimulator& s, const StepReport&) {
@@ -353,7 +359,7 @@ TEST_SUITE("contact") {
     const int nx = 11, ny = 5;
     const double duration = 0.5;
     const Scene scene = load_scene(scene_file("twisted_sheet.json"),
-                                   {"cloths.0.mesh.resolution=[11,5]", "time.duration=0.5"});
+                                   {"cloths.0.mesh.resolution=[11,5]", "time.duration=0.5", impulses, whole_steps});
     auto sim = make_simulator(scene);
     run_checked(*sim, contact_thickness(*sim));
     // Each pinned edge: the direction between its end vertices turned by omega t about +x.
@@ -388,7 +394,7 @@ TEST_SUITE("contact") {
 TEST_SUITE("slow") {
   TEST_CASE("contact scenes slow: the twisted sheet runs to the end without intersection or NaN") {
     OneThread one;
-    const Scene scene = load_scene(scene_file("twisted_sheet.json"), {"cloths.0.mesh.resolution=[31,13]"});
+    const Scene scene = load_scene(scene_file("twisted_sheet.json"), {"cloths.0.mesh.resolution=[31,13]", impulses, whole_steps});
     auto sim = make_simulator(scene);
     long long newton = 0;
     int newton_max = 0;
@@ -405,7 +411,7 @@ TEST_SUITE("slow") {
 
   TEST_CASE("contact scenes slow: dropVertical runs to the end without intersection or NaN") {
     OneThread one;
-    const Scene scene = load_scene(scene_file("drop_vertical.json"), {"cloths.0.mesh.resolution=[31,31]"});
+    const Scene scene = load_scene(scene_file("drop_vertical.json"), {"cloths.0.mesh.resolution=[31,31]", impulses, whole_steps});
     auto sim = make_simulator(scene);
     const RunStats st = run_checked(*sim, contact_thickness(*sim));
     CHECK(st.steps == 360);
@@ -469,7 +475,7 @@ TEST_SUITE("slow") {
       CAPTURE(std::string(combo));
       const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[" + std::to_string(n) + "," +
                                                                            std::to_string(n) + "]",
-                                                                       std::string("combo=") + combo});
+                                                                       std::string("combo=") + combo, whole_steps});
       auto sim = make_simulator(scene);
       run_checked(*sim, contact_thickness(*sim));
       const ObstacleSpec& sphere = scene.spec.obstacles[0];
