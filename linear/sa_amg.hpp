@@ -25,6 +25,11 @@
 /// With cycle_gamma = 2 the first cycle_gamma_levels coarse levels are corrected by two
 /// cycles from them (B_c = 2 V_c - V_c A_c V_c: symmetric, and SPD as V_c is a convergent
 /// SPD iteration).
+///
+/// The implementation follows the setup: linear/sa_strength.cpp (Csoc, special nodes),
+/// sa_aggregation.cpp and sa_ordering.cpp (aggregates, sheets, numbering),
+/// sa_prolongator.cpp (K, Phat, lambda, P), sa_amg.cpp (the hierarchy, A_c, the coarsest
+/// factorisation) and sa_cycle.cpp (the smoother and the cycle).
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
@@ -153,6 +158,10 @@ template <int B>
 double measure(const Eigen::Matrix<double, B, B>& M, SocMeasure measure);
 /// Spectral radius of a general 3x3 matrix (roots of the characteristic cubic).
 double spectral_radius3(const Eigen::Matrix3d& M);
+
+/// Clears every flag of a block of A that touches a special node.
+template <int B>
+void weaken_special(const BsrView<B, B>& A, const std::vector<std::uint8_t>& special, std::vector<std::uint8_t>& flags);
 
 /// Marks special nodes (no strong neighbour, or sum_j mu_ij < tau_dd) and clears every strong
 /// flag that touches one (repeated until no new node loses its last strong neighbour).
@@ -519,7 +528,7 @@ class SaAmg {
   void smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const;
 
  private:
-  struct Impl;  // the levels (sa_amg.cpp)
+  struct Impl;  // the levels (linear/sa_internal.hpp)
   Params prm_;
   SaStats stats_;
   int widened_ = 0;

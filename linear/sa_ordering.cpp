@@ -1,6 +1,6 @@
 /// \file sa_ordering.cpp
 /// `sa::order_aggregates`: the aggregates renumbered by reverse Cuthill-McKee (Boost.Graph),
-/// in a translation unit of its own so the graph headers stay out of sa_amg.cpp.
+/// in a translation unit of its own so the graph headers stay out of the other stages.
 #include <algorithm>
 #include <cstdlib>
 #include <utility>
