@@ -24,15 +24,6 @@
 namespace weft::linear {
 
 namespace {
-using sa_impl::find_block;
-template <int B>
-using Mat = sa_impl::Mat<B>;
-template <int B>
-using Vec = sa_impl::Vec<B>;
-}  // namespace
-using sa_impl::Level;
-
-namespace {
 
 /// ||D^-1 A||_inf with D the block diagonal of A as the operator reads it: an upper bound of
 /// the spectral radius of D^-1 A (every induced norm bounds it), so of lambda_max(D^-1 A).
@@ -236,6 +227,146 @@ double bound_of(const sa::LanczosResult& r, LambdaBound b) {
 /// The threshold aggregation follows (aggregation_theta, or theta when it is 0).
 double aggregation_threshold(const SaAmg::Params& prm) { return prm.aggregation_theta > 0 ? prm.aggregation_theta : prm.theta; }
 
+/// Stages 1-2 on level L: strength and special nodes (sa_strength.cpp), then the aggregates,
+/// split into sheets and numbered (sa_aggregation.cpp, sa_ordering.cpp). `sheets` enters as
+/// the level's sheet couplings (coarse levels) and leaves as the next level's. Returns the
+/// next level's scan order (empty: natural).
+template <int B>
+std::vector<int> coarsen(BuildContext& ctx, Level<B>& L, sa::SheetEdges& sheets, const std::vector<int>& scan) {
+  const auto& prm = ctx.prm;
+  auto& T = ctx.times;
+  const auto A = L.A();
+  std::vector<int> next_scan;
+  std::vector<double> mu;
+  if constexpr (B == 3)
+    if (prm.split_sheets) {
+      ScopedTimer t(T.aggregation);
+      sheets = sa::sheet_edges(A);
+    }
+  {
+    ScopedTimer t(T.strength);
+    sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong, prm.sheet_strength ? &sheets : nullptr);
+    L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
+  }
+  {
+    ScopedTimer t(T.aggregation);
+    L.aggs = sa::aggregate<B>(A, L.strong, L.special, scan);
+    if (prm.split_sheets) {
+      if constexpr (B == 3)
+        L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan, &A, prm.split_bonded);
+      else
+        L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
+      if (prm.split_merge > 0) L.sheet_merges = sa::merge_small_aggregates(sheets, L.aggs, prm.split_merge);
+    }
+    // The next level visits its nodes in their natural order (see `sa::aggregate`).
+    if (prm.aggregate_order != AggregateOrder::natural) {
+      next_scan = sa::order_aggregates<B>(A, L.aggs, prm.aggregate_order);
+      L.reordered = !next_scan.empty();
+    }
+    if (prm.split_sheets) sheets = sa::coarse_sheet_edges(sheets, L.aggs);
+  }
+  if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
+    // The smoothing filter's own threshold; blocks touching a special node stay
+    // weak as in L.strong.
+    ScopedTimer t(T.strength);
+    sa::strong_flags<B>(A, mu, prm.theta, L.filter);
+    sa::weaken_special<B>(A, L.special, L.filter);
+  } else {
+    L.filter = {};
+  }
+  return next_scan;
+}
+
+/// What the cycle needs to apply an implicit prolongator P = Z (I - omega D^-1 A_f) Phat from
+/// A (`implicit_prolongator`, level 0): Phat, the aggregates' nodes and the strong flags as
+/// bits; on other levels, nothing.
+template <int B>
+void keep_implicit_prolongator(Level<B>& L, const std::vector<std::uint8_t>* strong, double omega, const sa::Tentative& tent) {
+  if (!L.implicit) {
+    L.Qf = {};
+    L.agg_ptr = {};
+    L.agg_nodes = {};
+    L.strong_bits = {};
+    return;
+  }
+  const auto A = L.A();
+  const int n = A.rows;
+  L.omega = omega;
+  L.Qf.assign(tent.Q.begin(), tent.Q.end());
+  const std::vector<int>& agg = L.aggs.node_agg;
+  L.agg_ptr.assign(L.aggs.count + 1, 0);
+  for (int i = 0; i < n; ++i)
+    if (agg[i] >= 0) ++L.agg_ptr[agg[i] + 1];
+  for (int J = 0; J < L.aggs.count; ++J) L.agg_ptr[J + 1] += L.agg_ptr[J];
+  L.agg_nodes.assign(L.agg_ptr.back(), 0);
+  std::vector<int> fill(L.agg_ptr.begin(), L.agg_ptr.end() - 1);
+  for (int i = 0; i < n; ++i)
+    if (agg[i] >= 0) L.agg_nodes[fill[agg[i]]++] = i;
+  L.strong_bits.assign(strong ? (static_cast<std::size_t>(A.nnz()) + 63) / 64 : 0, 0);
+  if (strong)
+    for (int k = 0; k < A.nnz(); ++k)
+      if ((*strong)[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
+}
+
+/// Stage 4, the coarse operator A_c = P^T A P of level L into C (the symbolic product unless
+/// `reuse` keeps C's pattern); dummy coarse dofs (dropped QR columns) have zero rows and
+/// columns and get the mean diagonal, so that A_c stays SPD with them decoupled.
+template <int B>
+void coarse_operator(const Level<B>& L, const TransposeIndex& PT, bool reuse, bool single, Level<6>& C) {
+  const auto A = L.A();
+  const int nc = L.aggs.count;
+  if (!reuse) C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), PT, single);
+  Galerkin<B, 6>::numeric(A, L.P.view(), PT, C.own);  // exactly symmetric
+  double sum = 0;
+  long count = 0;
+  for (int I = 0; I < nc; ++I) {
+    const auto D = C.own.stored_value(C.own.diagonal_index(I));
+    for (int c = 0; c < 6; ++c)
+      if (!L.dummy[6 * I + c]) sum += D(c, c), ++count;
+  }
+  const double mean = count > 0 ? sum / count : 1.0;
+  for (int I = 0; I < nc; ++I) {
+    bool any = false;
+    for (int c = 0; c < 6; ++c) any = any || L.dummy[6 * I + c];
+    if (!any) continue;
+    const int s = C.own.diagonal_index(I);
+    auto D = C.own.stored_value(s);
+    for (int c = 0; c < 6; ++c)
+      if (L.dummy[6 * I + c]) D(c, c) = mean;
+    C.own.store(s, D);
+  }
+}
+
+/// After the Galerkin product: keeps P in the storage the cycle reads (or nothing for an
+/// implicit P), its restriction chunks, and (reuse = none) frees the coarsening structure,
+/// which nothing reads again before the next setup rebuilds it. Returns the chunk count.
+template <int B>
+int keep_for_cycle(Level<B>& L, const SaAmg::Params& prm) {
+  L.Pf = {};
+  if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
+    L.P.clear();
+    L.Pq = {};
+    L.Pscale = {};
+  } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
+    L.Pf.assign(L.P.values().begin(), L.P.values().end());
+    std::vector<double>().swap(L.P.values());
+  } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
+    std::vector<double>().swap(L.P.values());
+  }
+  // The cycle restricts by P's rows (`restrict_rows`), with no transpose index (8 bytes per
+  // block of P).
+  L.rchunks = L.implicit ? std::vector<int>{} : sa::restriction_chunks<B>(L.P.view());
+  if (prm.reuse == SaReuse::none) {
+    // Only `aggregates` refreshes values on the kept structure.
+    std::vector<std::uint8_t>().swap(L.strong);
+    std::vector<std::uint8_t>().swap(L.filter);
+    std::vector<std::uint8_t>().swap(L.special);
+    if (!L.implicit) std::vector<int>().swap(L.aggs.node_agg);
+    std::vector<std::uint8_t>().swap(L.dummy);
+  }
+  return std::max(0, static_cast<int>(L.rchunks.size()) - 1);
+}
+
 /// Build (or refresh, with `reuse`) level `index` (0 = fine) and recursively the levels below.
 template <int B>
 Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool reuse, sa::SheetEdges sheets = {},
@@ -267,45 +398,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   std::vector<int> next_scan;  // the next level's scan order (`AggregateOrder::rcm`)
   if (!reuse) {
     L.coarsest = false;
-    if (!last) {
-      std::vector<double> mu;
-      if constexpr (B == 3)
-        if (prm.split_sheets) {
-          ScopedTimer t(T.aggregation);
-          sheets = sa::sheet_edges(A);
-        }
-      {
-        ScopedTimer t(T.strength);
-        sa::strength<B>(A, aggregation_threshold(prm), prm.strength, mu, L.strong, prm.sheet_strength ? &sheets : nullptr);
-        L.num_special = sa::special_nodes<B>(A, mu, prm.diagonal_dominance, L.strong, L.special);
-      }
-      {
-        ScopedTimer t(T.aggregation);
-        L.aggs = sa::aggregate<B>(A, L.strong, L.special, scan);
-        if (prm.split_sheets) {
-          if constexpr (B == 3)
-            L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan, &A, prm.split_bonded);
-          else
-            L.sheet_splits = sa::split_sheets(sheets, L.aggs, scan);
-          if (prm.split_merge > 0) L.sheet_merges = sa::merge_small_aggregates(sheets, L.aggs, prm.split_merge);
-        }
-        // The next level visits its nodes in their natural order (see `sa::aggregate`).
-        if (prm.aggregate_order != AggregateOrder::natural) {
-          next_scan = sa::order_aggregates<B>(A, L.aggs, prm.aggregate_order);
-          L.reordered = !next_scan.empty();
-        }
-        if (prm.split_sheets) sheets = sa::coarse_sheet_edges(sheets, L.aggs);
-      }
-      if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
-        // The smoothing filter's own threshold; blocks touching a special node stay
-        // weak as in L.strong.
-        ScopedTimer t(T.strength);
-        sa::strong_flags<B>(A, mu, prm.theta, L.filter);
-        sa::weaken_special<B>(A, L.special, L.filter);
-      } else {
-        L.filter = {};
-      }
-    }
+    if (!last) next_scan = coarsen(ctx, L, sheets, scan);
     if (last || L.aggs.count == 0 || L.aggs.count > prm.stall_ratio * n) {
       ScopedTimer t(T.other);
       L.strong = {};
@@ -373,28 +466,9 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       round_to_storage(L, PT, prm.prolongator_storage);
   }
   st.nnz_p = L.P.nnz();
-  if (L.implicit) {
+  {
     ScopedTimer t(T.other);
-    L.omega = omega;
-    L.Qf.assign(tent.Q.begin(), tent.Q.end());
-    const std::vector<int>& agg = L.aggs.node_agg;
-    L.agg_ptr.assign(L.aggs.count + 1, 0);
-    for (int i = 0; i < n; ++i)
-      if (agg[i] >= 0) ++L.agg_ptr[agg[i] + 1];
-    for (int J = 0; J < L.aggs.count; ++J) L.agg_ptr[J + 1] += L.agg_ptr[J];
-    L.agg_nodes.assign(L.agg_ptr.back(), 0);
-    std::vector<int> fill(L.agg_ptr.begin(), L.agg_ptr.end() - 1);
-    for (int i = 0; i < n; ++i)
-      if (agg[i] >= 0) L.agg_nodes[fill[agg[i]]++] = i;
-    L.strong_bits.assign(strong ? (static_cast<std::size_t>(A.nnz()) + 63) / 64 : 0, 0);
-    if (strong)
-      for (int k = 0; k < A.nnz(); ++k)
-        if ((*strong)[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
-  } else {
-    L.Qf = {};
-    L.agg_ptr = {};
-    L.agg_nodes = {};
-    L.strong_bits = {};
+    keep_implicit_prolongator(L, strong, omega, tent);
   }
   tent.Q = {};
   keep_inverses(L, prm);
@@ -406,56 +480,10 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   Level<6>& C = ctx.coarse[index];
   {
     ScopedTimer t(T.galerkin);
-    if (!reuse) {
-      C.own = Galerkin<B, 6>::symbolic(A, L.P.view(), PT, prm.single_coarse_operators);
-    }
-    Galerkin<B, 6>::numeric(A, L.P.view(), PT, C.own);  // exactly symmetric
+    coarse_operator(L, PT, reuse, prm.single_coarse_operators, C);
     PT = {};  // freed before the levels below are built
-    // Dummy coarse dofs (dropped QR columns) have zero rows and columns: give them the mean
-    // diagonal so A_c stays SPD; they are decoupled from everything else.
-    double sum = 0;
-    long count = 0;
-    for (int I = 0; I < nc; ++I) {
-      const auto D = C.own.stored_value(C.own.diagonal_index(I));
-      for (int c = 0; c < 6; ++c)
-        if (!L.dummy[6 * I + c]) sum += D(c, c), ++count;
-    }
-    const double mean = count > 0 ? sum / count : 1.0;
-    for (int I = 0; I < nc; ++I) {
-      bool any = false;
-      for (int c = 0; c < 6; ++c) any = any || L.dummy[6 * I + c];
-      if (!any) continue;
-      const int s = C.own.diagonal_index(I);
-      auto D = C.own.stored_value(s);
-      for (int c = 0; c < 6; ++c)
-        if (L.dummy[6 * I + c]) D(c, c) = mean;
-      C.own.store(s, D);
-    }
   }
-  L.Pf = {};
-  if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
-    L.P.clear();
-    L.Pq = {};
-    L.Pscale = {};
-  } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
-    L.Pf.assign(L.P.values().begin(), L.P.values().end());
-    std::vector<double>().swap(L.P.values());
-  } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
-    std::vector<double>().swap(L.P.values());
-  }
-  // The cycle restricts by P's rows (`restrict_rows`), with no transpose index (8 bytes per
-  // block of P).
-  L.rchunks = L.implicit ? std::vector<int>{} : sa::restriction_chunks<B>(L.P.view());
-  st.restriction_chunks = std::max(0, static_cast<int>(L.rchunks.size()) - 1);
-  if (prm.reuse == SaReuse::none) {
-    // Nothing reads the coarsening structure again before the next setup rebuilds it: give
-    // it back now (only `aggregates` refreshes values on the kept structure).
-    std::vector<std::uint8_t>().swap(L.strong);
-    std::vector<std::uint8_t>().swap(L.filter);
-    std::vector<std::uint8_t>().swap(L.special);
-    if (!L.implicit) std::vector<int>().swap(L.aggs.node_agg);
-    std::vector<std::uint8_t>().swap(L.dummy);
-  }
+  st.restriction_chunks = keep_for_cycle(L, prm);
   L.coarsest = false;
   ctx.stats.push_back(st);
   // Work vectors of the coarse level.

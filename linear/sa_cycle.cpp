@@ -21,15 +21,6 @@
 
 namespace weft::linear {
 
-namespace {
-using sa_impl::find_block;
-template <int B>
-using Mat = sa_impl::Mat<B>;
-template <int B>
-using Vec = sa_impl::Vec<B>;
-}  // namespace
-using sa_impl::Level;
-
 namespace sa {
 
 template <int B>

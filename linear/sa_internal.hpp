@@ -101,9 +101,17 @@ struct Level {
 
 namespace weft::linear {
 
+// The SA translation units use these unqualified.
+using sa_impl::find_block;
+using sa_impl::Level;
+template <int B>
+using Mat = sa_impl::Mat<B>;
+template <int B>
+using Vec = sa_impl::Vec<B>;
+
 struct SaAmg::Impl {
-  std::unique_ptr<sa_impl::Level<3>> fine = std::make_unique<sa_impl::Level<3>>();
-  std::vector<sa_impl::Level<6>> coarse;  // reserved to max_levels: references stay valid
+  std::unique_ptr<Level<3>> fine = std::make_unique<Level<3>>();
+  std::vector<Level<6>> coarse;  // reserved to max_levels: references stay valid
   bool built = false;
   int fine_rows = -1, fine_nnz = -1;
   double nnz_scalar_total = 0, rows_scalar_total = 0;

@@ -22,14 +22,6 @@
 namespace weft::linear {
 
 namespace {
-using sa_impl::find_block;
-template <int B>
-using Mat = sa_impl::Mat<B>;
-template <int B>
-using Vec = sa_impl::Vec<B>;
-}  // namespace
-
-namespace {
 
 /// Deterministic pseudo-random number in [-1, 1) from an index (splitmix64).
 double hash_uniform(std::uint64_t i) {

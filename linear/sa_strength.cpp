@@ -21,14 +21,6 @@
 namespace weft::linear {
 
 namespace {
-using sa_impl::find_block;
-template <int B>
-using Mat = sa_impl::Mat<B>;
-template <int B>
-using Vec = sa_impl::Vec<B>;
-}  // namespace
-
-namespace {
 
 /// Symmetric inverse square root of an SPD block (eigenvalues below 1e-14 of the largest
 /// are treated as zero: the direction gets no weight).
