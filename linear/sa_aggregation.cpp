@@ -176,10 +176,12 @@ SheetEdges coarse_sheet_edges(const SheetEdges& edges, const Aggregates& aggs) {
   return coarse;
 }
 
-template Aggregates aggregate<3>(const BsrView<3, 3>&, const std::vector<std::uint8_t>&, const std::vector<std::uint8_t>&,
-                                 const std::vector<int>&);
-template Aggregates aggregate<6>(const BsrView<6, 6>&, const std::vector<std::uint8_t>&, const std::vector<std::uint8_t>&,
-                                 const std::vector<int>&);
+#define WEFT_SA_INSTANTIATE(B)                                                                                               \
+  template Aggregates aggregate<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&, const std::vector<std::uint8_t>&, \
+    const std::vector<int>&);
+WEFT_SA_INSTANTIATE(3)
+WEFT_SA_INSTANTIATE(6)
+#undef WEFT_SA_INSTANTIATE
 
 }  // namespace sa
 

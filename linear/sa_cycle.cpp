@@ -45,8 +45,11 @@ std::vector<int> restriction_chunks(const BsrView<B, 6>& P, int min_rows) {
   return b;
 }
 
-template std::vector<int> restriction_chunks<3>(const BsrView<3, 6>&, int);
-template std::vector<int> restriction_chunks<6>(const BsrView<6, 6>&, int);
+#define WEFT_SA_INSTANTIATE(B)                                                \
+  template std::vector<int> restriction_chunks<B>(const BsrView<B, 6>&, int);
+WEFT_SA_INSTANTIATE(3)
+WEFT_SA_INSTANTIATE(6)
+#undef WEFT_SA_INSTANTIATE
 
 }  // namespace sa
 

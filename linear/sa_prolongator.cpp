@@ -406,26 +406,20 @@ long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_bl
   return dropped;
 }
 
-template Tentative tentative_prolongator<3>(const Aggregates&, const NullSpace&, double);
-template LanczosResult lanczos<3>(const BsrView<3, 3>&, const std::vector<double>&, int);
-template BlockMatrix<3, 6> prolongator_pattern<3>(const BsrView<3, 3>&, const std::vector<std::uint8_t>*, const Aggregates&);
-template void prolongator_values<3>(const BsrView<3, 3>&, const std::vector<double>&, const std::vector<std::uint8_t>*, const Aggregates&,
-                                    const Tentative&, double, BlockMatrix<3, 6>&);
-template double preserve_modes<3>(const BsrView<3, 3>&, const std::vector<double>&, const Aggregates&, double, int, const NullSpace&,
-                                  const NullSpace&, BlockMatrix<3, 6>&);
-template BlockMatrix<3, 6> smooth_prolongator<3>(const BsrView<3, 3>&, const std::vector<double>&, const std::vector<std::uint8_t>*,
-                                                 const Aggregates&, double, const BlockMatrix<3, 6>&);
-template long long truncate_prolongator<3>(BlockMatrix<3, 6>&, double, int);
-template Tentative tentative_prolongator<6>(const Aggregates&, const NullSpace&, double);
-template LanczosResult lanczos<6>(const BsrView<6, 6>&, const std::vector<double>&, int);
-template BlockMatrix<6, 6> prolongator_pattern<6>(const BsrView<6, 6>&, const std::vector<std::uint8_t>*, const Aggregates&);
-template void prolongator_values<6>(const BsrView<6, 6>&, const std::vector<double>&, const std::vector<std::uint8_t>*, const Aggregates&,
-                                    const Tentative&, double, BlockMatrix<6, 6>&);
-template double preserve_modes<6>(const BsrView<6, 6>&, const std::vector<double>&, const Aggregates&, double, int, const NullSpace&,
-                                  const NullSpace&, BlockMatrix<6, 6>&);
-template BlockMatrix<6, 6> smooth_prolongator<6>(const BsrView<6, 6>&, const std::vector<double>&, const std::vector<std::uint8_t>*,
-                                                 const Aggregates&, double, const BlockMatrix<6, 6>&);
-template long long truncate_prolongator<6>(BlockMatrix<6, 6>&, double, int);
+#define WEFT_SA_INSTANTIATE(B)                                                                                                               \
+  template Tentative tentative_prolongator<B>(const Aggregates&, const NullSpace&, double);                                                  \
+  template LanczosResult lanczos<B>(const BsrView<B, B>&, const std::vector<double>&, int);                                                  \
+  template BlockMatrix<B, 6> prolongator_pattern<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>*, const Aggregates&);              \
+  template void prolongator_values<B>(const BsrView<B, B>&, const std::vector<double>&, const std::vector<std::uint8_t>*, const Aggregates&, \
+    const Tentative&, double, BlockMatrix<B, 6>&);                                                                                           \
+  template double preserve_modes<B>(const BsrView<B, B>&, const std::vector<double>&, const Aggregates&, double, int, const NullSpace&,      \
+    const NullSpace&, BlockMatrix<B, 6>&);                                                                                                   \
+  template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&, const std::vector<std::uint8_t>*,       \
+    const Aggregates&, double, const BlockMatrix<B, 6>&);                                                                                    \
+  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double, int);
+WEFT_SA_INSTANTIATE(3)
+WEFT_SA_INSTANTIATE(6)
+#undef WEFT_SA_INSTANTIATE
 
 }  // namespace sa
 

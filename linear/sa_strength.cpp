@@ -218,16 +218,15 @@ int special_nodes(const BsrView<B, B>& A, const std::vector<double>& mu, double 
   return static_cast<int>(std::count(special.begin(), special.end(), 1));
 }
 
-template void strength<3>(const BsrView<3, 3>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&, const SheetEdges*);
-template void strong_flags<3>(const BsrView<3, 3>&, const std::vector<double>&, double, std::vector<std::uint8_t>&, const SheetEdges*);
-template void weaken_special<3>(const BsrView<3, 3>&, const std::vector<std::uint8_t>&, std::vector<std::uint8_t>&);
-template int special_nodes<3>(const BsrView<3, 3>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,
-                              std::vector<std::uint8_t>&);
-template void strength<6>(const BsrView<6, 6>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&, const SheetEdges*);
-template void strong_flags<6>(const BsrView<6, 6>&, const std::vector<double>&, double, std::vector<std::uint8_t>&, const SheetEdges*);
-template void weaken_special<6>(const BsrView<6, 6>&, const std::vector<std::uint8_t>&, std::vector<std::uint8_t>&);
-template int special_nodes<6>(const BsrView<6, 6>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,
-                              std::vector<std::uint8_t>&);
+#define WEFT_SA_INSTANTIATE(B)                                                                                                              \
+  template void strength<B>(const BsrView<B, B>&, double, SocMeasure, std::vector<double>&, std::vector<std::uint8_t>&, const SheetEdges*); \
+  template void strong_flags<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&, const SheetEdges*);   \
+  template void weaken_special<B>(const BsrView<B, B>&, const std::vector<std::uint8_t>&, std::vector<std::uint8_t>&);                      \
+  template int special_nodes<B>(const BsrView<B, B>&, const std::vector<double>&, double, std::vector<std::uint8_t>&,                       \
+    std::vector<std::uint8_t>&);
+WEFT_SA_INSTANTIATE(3)
+WEFT_SA_INSTANTIATE(6)
+#undef WEFT_SA_INSTANTIATE
 
 }  // namespace sa
 

@@ -512,16 +512,20 @@ std::string scene_path(const std::string& name) {
   return std::string(root ? root : ".") + "/scenes/" + name;
 }
 
+struct RunToEnd {
+  int steps = 0;
+  double newton_per_step = 0;
+  int subdivided = 0;  ///< steps retried as substeps
+};
+
 // Runs a scene to its end under the barrier, checking after every step: no cloth-cloth
 // intersection and no cloth triangle crossing an obstacle (the exact referees), a finite
-// state. Returns the Newton iterations per step.
-/// Runs `scene` to its end, checking every step; Newton iterations per step, and the steps
-/// retried as substeps in `subdivided`.
-double run_to_end_checked(const Scene& scene, int& subdivided) {
+// state.
+RunToEnd run_to_end_checked(const Scene& scene) {
   auto sim = make_simulator(scene);
-  const int steps = static_cast<int>(std::lround(scene.spec.time.duration / scene.spec.time.dt));
+  RunToEnd out;
+  const int steps = out.steps = static_cast<int>(std::lround(scene.spec.time.duration / scene.spec.time.dt));
   long long newton = 0, pairs = 0;
-  subdivided = 0;
   for (int k = 1; k <= steps; ++k) {
     CAPTURE(k);
     const StepReport r = sim->step();
@@ -532,10 +536,11 @@ double run_to_end_checked(const Scene& scene, int& subdivided) {
     REQUIRE(contact::verify::check_obstacles(s.x, scene.mesh.faces(), scene.spec.obstacles, s.t).crossing_triangles == 0);
     newton += r.newton.iterations;
     pairs += r.contact.barrier_pairs;
-    subdivided += r.substeps > 1;
+    out.subdivided += r.substeps > 1;
   }
   CHECK(pairs > 0);  // it did reach contact
-  return static_cast<double>(newton) / steps;
+  out.newton_per_step = static_cast<double>(newton) / steps;
+  return out;
 }
 
 }  // namespace
@@ -562,15 +567,12 @@ TEST_SUITE("slow") {
         {"drape_sphere.json", {"cloths.0.mesh.resolution=[11,11]"}}};
     for (const Case& c : cases) {
       CAPTURE(c.file);
-      std::vector<std::string> o = c.overrides;
-      const Scene scene = load_scene(scene_path(c.file), o);
+      const Scene scene = load_scene(scene_path(c.file), c.overrides);
       REQUIRE(scene.spec.combo == "cloth_ip_barrier_sa_ppcg");
-      int subdivided = 0;
-      const double newton = run_to_end_checked(scene, subdivided);
-      const int steps = static_cast<int>(std::lround(scene.spec.time.duration / scene.spec.time.dt));
-      MESSAGE(c.file << ": " << scene.mesh.num_vertices() << " vertices, Newton " << newton << " per step, " << subdivided
-                     << " steps as substeps");
-      CHECK(subdivided <= steps / 100);
+      const RunToEnd run = run_to_end_checked(scene);
+      MESSAGE(c.file << ": " << scene.mesh.num_vertices() << " vertices, Newton " << run.newton_per_step << " per step, "
+                     << run.subdivided << " steps as substeps");
+      CHECK(run.subdivided <= run.steps / 100);
     }
   }
 }
