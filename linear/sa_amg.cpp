@@ -103,12 +103,10 @@ Checker SaAmg::validate(const Params& p) {
       .require(p.split_merge >= 0, "split_merge", p.split_merge, ">= 0")
       .require(p.split_merge == 0 || p.split_sheets, "split_merge", p.split_merge,
                "0 unless split_sheets is true (it merges within the sheets)");
-  // Both ways of dropping prolongator blocks need the mode repair and fresh patterns.
+  // Both ways of dropping prolongator blocks need the mode repair.
   auto trims = [&](const char* key, auto value) {
     c.require(value == 0 || p.preserve_modes, key, value,
-              "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)")
-        .require(value == 0 || p.reuse == SaReuse::none, key, value,
-                 "0 unless reuse is none (the kept blocks, and so the patterns, change with the values)");
+              "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)");
   };
   trims("prolongator_truncation", p.prolongator_truncation);
   trims("prolongator_max_blocks", p.prolongator_max_blocks);
@@ -275,6 +273,19 @@ std::vector<int> coarsen(BuildContext& ctx, Level<B>& L, sa::SheetEdges& sheets,
     L.filter = {};
   }
   return next_scan;
+}
+
+/// Restricts P to the pattern (ptr, col), a subset of P's: the truncation of the first setup
+/// under reuse, so that the coarse operators keep their patterns. Returns the blocks dropped.
+template <int B>
+long long restrict_prolongator(BlockMatrix<B, 6>& P, const std::vector<int>& ptr, const std::vector<int>& col) {
+  BlockMatrix<B, 6> R(P.rows(), P.cols(), ptr, col);
+  for (int i = 0; i < P.rows(); ++i)
+    for (int k = ptr[i]; k < ptr[i + 1]; ++k)
+      if (const int m = P.find(i, col[k]); m >= 0) R.block(k) = P.block(m);
+  const long long dropped = static_cast<long long>(P.nnz()) - R.nnz();
+  P = std::move(R);
+  return dropped;
 }
 
 /// What the cycle needs to apply an implicit prolongator P = Z (I - omega D^-1 A_f) Phat from
@@ -449,12 +460,21 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     ScopedTimer t(T.smoothing);
     // An implicit P is formed here for the Galerkin product and freed after it.
     // A wider P (degree > 1) is formed from the one-step pattern each time.
-    if (!reuse || L.P.rows() == 0 || degree > 1) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
+    // A truncated P is formed whole and restricted to its first setup's pattern under reuse.
+    const bool truncating = prm.prolongator_truncation > 0 || prm.prolongator_max_blocks > 0;
+    if (!reuse || L.P.rows() == 0 || degree > 1 || truncating) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
     for (int d = 1; d < degree; ++d) L.P = sa::smooth_prolongator<B>(A, L.Dinv, strong, L.aggs, omega, L.P);
-    if (prm.prolongator_truncation > 0 || prm.prolongator_max_blocks > 0)
+    if (truncating && reuse) {
+      st.truncated = restrict_prolongator<B>(L.P, L.kept_ptr, L.kept_col);
+    } else if (truncating) {
       st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation, prm.prolongator_max_blocks);
+      if (prm.reuse == SaReuse::aggregates) {
+        L.kept_ptr = L.P.row_ptr();
+        L.kept_col = L.P.col();
+      }
+    }
     if (prm.preserve_modes) {
       if (strong || st.truncated > 0)  // the filter, or the dropped blocks, moved P Kc
         st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
@@ -493,6 +513,18 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   return build_level<6>(ctx, C, index + 1, std::move(tent.Kc), reuse, std::move(sheets), std::move(next_scan));
 }
 
+/// FNV-1a over the row pointers and column indices.
+std::uint64_t pattern_fingerprint(const BlockCsr& A) {
+  std::uint64_t h = 1469598103934665603ull;
+  const auto mix = [&h](int v) {
+    h ^= static_cast<std::uint32_t>(v);
+    h *= 1099511628211ull;
+  };
+  for (int v : A.row_ptr()) mix(v);
+  for (int v : A.col()) mix(v);
+  return h;
+}
+
 }  // namespace
 
 Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx) { return setup(A, ctx, VertexFilterView{}); }
@@ -513,7 +545,10 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
     stats_.message = fmt::format("SaAmg: constraint set has {} vertices, the matrix {}", ctx.constraints->num_vertices(), n);
     return Status::invalid_input;
   }
-  const bool same_pattern = I.built && I.fine_rows == n && I.fine_nnz == A.num_blocks();
+  // Reuse needs the very pattern the structure was built on: contact pairs that come and go
+  // can leave the block count unchanged while moving blocks.
+  const std::uint64_t pattern = pattern_fingerprint(A);
+  const bool same_pattern = I.built && I.fine_rows == n && I.fine_nnz == A.num_blocks() && I.fine_pattern == pattern;
   const bool reuse = same_pattern && prm_.reuse != SaReuse::none;
   stats_.reused = reuse;
   if (reuse && prm_.reuse == SaReuse::frozen) return Status::success;
@@ -559,6 +594,7 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
   stats_.times = times;
   I.fine_rows = n;
   I.fine_nnz = A.num_blocks();
+  I.fine_pattern = pattern;
   if (status != Status::success) {
     I.built = false;
     if (stats_.message.empty()) stats_.message = "SaAmg setup failed: a diagonal block is singular or lambda is not finite";

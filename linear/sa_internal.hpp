@@ -58,6 +58,7 @@ struct Level {
   int sheet_merges = 0;  // aggregates removed by split_merge
   bool reordered = false;  // aggregates renumbered (aggregate_order)
   BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
+  std::vector<int> kept_ptr, kept_col;  // a truncated P's pattern, kept for reuse = aggregates
   std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
   std::vector<double> Pscale;    // one scale per coarse dof
@@ -88,7 +89,7 @@ struct Level {
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
-                    P.memory_bytes() + vb(Pf) + vb(Pq) + vb(Pscale) + vb(rchunks) + vb(dummy);
+                    P.memory_bytes() + vb(kept_ptr) + vb(kept_col) + vb(Pf) + vb(Pq) + vb(Pscale) + vb(rchunks) + vb(dummy);
     m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
     m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
@@ -114,6 +115,7 @@ struct SaAmg::Impl {
   std::vector<Level<6>> coarse;  // reserved to max_levels: references stay valid
   bool built = false;
   int fine_rows = -1, fine_nnz = -1;
+  std::uint64_t fine_pattern = 0;  // fingerprint of the fine matrix's pattern (reuse needs the same one)
   double nnz_scalar_total = 0, rows_scalar_total = 0;
 };
 
