@@ -149,65 +149,16 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
                   maker<linear::DiagPpcg>(krylov<linear::DiagPpcg>(s))});
   using linear::SaMpcg;
   using linear::SaPpcg;
-  list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation V(1,1) preconditioner built from Ahat (thesis)", false,
-                  maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
-  // SA+PPCG with named settings changed, to run beside the default in one run.
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_implicit", "SA+PPCG implicit P",
-                               "SA+PPCG with the fine prolongator applied from A instead of stored",
-                               {"implicit_prolongator=true"}));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2", "SA+PPCG P degree 2",
-                               "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 (the iteration-growth option)",
-                               {"prolongator_degree=2"}));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_p2w", "SA+PPCG P degree 2, W",
-                               "SA+PPCG with two prolongator smoothing steps on levels 0 and 1 and a W-cycle on level 1",
-                               {"prolongator_degree=2", "cycle_gamma=2"}));
-  // The presets built on others add settings to them.
-  auto plus = [](std::vector<std::string> base, std::initializer_list<const char*> more) {
-    base.insert(base.end(), more.begin(), more.end());
-    return base;
-  };
-  const std::vector<std::string> flat = {"aggregation_theta=0.25", "prolongator_degree=2", "cycle_gamma=2", "cycle_gamma_levels=2"};
-  const std::vector<std::string> lean = {"aggregation_theta=0.25", "cycle_gamma=2", "cycle_gamma_levels=2", "preserve_modes=true"};
-  const std::vector<std::string> lean_sheets = plus(lean, {"split_sheets=true", "sheet_strength=true", "split_bonded=0.01"});
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat", "SA+PPCG flat",
-                               "SA+PPCG aggregating at 0.25 (smoothing at theta), degree-2 prolongators on levels 0-1, W-cycle on levels 1-2: "
-                               "flat iterations on the regular sheets",
-                               flat));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_flat_pm", "SA+PPCG flat, modes kept",
-                               "sa_ppcg_flat with the prolongator corrected to keep the smoothed rigid modes (preserve_modes): "
-                               "flat iterations on the irregular sheets too",
-                               plus(flat, {"preserve_modes=true"})));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean", "SA+PPCG lean, modes kept",
-                               "SA+PPCG aggregating at 0.25, W-cycle on levels 1-2, prolongator corrected to keep the smoothed "
-                               "rigid modes (preserve_modes), degree 1: about 0.7x the default's memory",
-                               lean));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean_sheets", "SA+PPCG lean, sheets",
-                               "sa_ppcg_lean with aggregates split into sheets where springs align (split_bonded 0.01), "
-                               "strength measured within the sheets: the accordions of dropVertical within 1.5x Diag-PCG's memory",
-                               lean_sheets));
-  const std::vector<std::string> lean2_sheets = plus(lean_sheets, {"prolongator_degree=2", "prolongator_degree_levels=1"});
-  const std::vector<std::string> lean2t_sheets = plus(lean2_sheets, {"prolongator_truncation=0.05"});
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2_sheets", "SA+PPCG lean2, sheets",
-                               "sa_ppcg_lean_sheets with two prolongator smoothing steps on the fine level only "
-                               "(prolongator_degree 2, prolongator_degree_levels 1): the sheets' bending at 1M vertices",
-                               lean2_sheets));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2t_sheets", "SA+PPCG lean2t, sheets",
-                               "sa_ppcg_lean2_sheets with each prolongator row truncated at 0.05 of its largest block and the "
-                               "rigid modes repaired (prolongator_truncation 0.05): a narrower degree-2 P and level 1 on "
-                               "dropVertical's accordion, pinned's growth to 1M kept within 2x",
-                               lean2t_sheets));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2tc_sheets", "SA+PPCG lean2tc, sheets",
-                               "sa_ppcg_lean2t_sheets with at most 4 blocks per prolongator row (prolongator_max_blocks 4): "
-                               "only the accordion's wide rows narrow further",
-                               plus(lean2t_sheets, {"prolongator_max_blocks=4"})));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_lean2tm_sheets", "SA+PPCG lean2tm, sheets",
-                               "sa_ppcg_lean2t_sheets with the split's pieces of at most 3 nodes joined to a neighbouring "
-                               "aggregate of their sheet (split_merge 3): a smaller level 1 on dropVertical's accordion",
-                               plus(lean2t_sheets, {"split_merge=3"})));
-  list.push_back(sa_ppcg_entry(s, "sa_ppcg_sheets", "SA+PPCG sheets",
-                               "SA+PPCG splitting aggregates into sheets (split_sheets) and aggregating at 0.25: "
-                               "layers joined by springs, as dropVertical's accordion",
-                               {"split_sheets=true", "aggregation_theta=0.25"}));
+  list.push_back({"sa_ppcg", "SA+PPCG", "prefiltered PCG, smoothed aggregation preconditioner built from Ahat (preset auto, as in a scene)",
+                  false, maker<SaPpcg>(sa_krylov<SaPpcg>(s))});
+  // The other presets, to run beside the default in one run (any other setting: sa_ppcg:KEY=VALUE).
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_thesis", "SA+PPCG thesis",
+                               "SA+PPCG with the thesis' V(1,1) hierarchy rebuilt at every setup (preset thesis: Table 11.1)",
+                               {"preset=thesis"}));
+  list.push_back(sa_ppcg_entry(s, "sa_ppcg_large", "SA+PPCG large",
+                               "SA+PPCG with the large preset: degree-2 fine prolongator truncated and repaired, W-cycle on "
+                               "levels 1-2, aggregates split into sheets (iterations within 2x from 10k to 1M vertices)",
+                               {"preset=large"}));
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC

@@ -12,11 +12,14 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <numeric>
+#include <string>
 #include <type_traits>
 #include <utility>
 
 #include "framework/error.hpp"
+#include "framework/params_json.hpp"
 #include "framework/timers.hpp"
 #include "framework/union_find.hpp"
 #include "linear/sa_internal.hpp"
@@ -52,7 +55,7 @@ bool SaAmg::widen_smoothers() {
   auto widen = [&](auto& L, int l) {
     if (L.coarsest && L.direct != 0) return;  // solved exactly: no smoother
     // The interval's top, chebyshev_upper * lambda, must cover lambda_max <= g.
-    const double lambda = inf_norm_bound(L) / prm_.chebyshev_upper;
+    const double lambda = inf_norm_bound(L) / active_.chebyshev_upper;
     if (!(lambda > L.lambda)) return;
     L.lambda = lambda;
     if (l < static_cast<int>(stats_.levels.size())) stats_.levels[l].lambda = lambda;
@@ -64,13 +67,63 @@ bool SaAmg::widen_smoothers() {
   return changed;
 }
 
-SaAmg::SaAmg(const Params& prm) : prm_(prm), impl_(std::make_unique<Impl>()) { validate(prm_).throw_if_failed(); }
+SaAmg::SaAmg(const Params& prm) : prm_(prm), active_(prm), impl_(std::make_unique<Impl>()) { validate(prm_).throw_if_failed(); }
 SaAmg::~SaAmg() = default;
 SaAmg::SaAmg(SaAmg&&) noexcept = default;
 SaAmg& SaAmg::operator=(SaAmg&&) noexcept = default;
 
+SaAmg::Params SaAmg::Params::of(SaPreset p) {
+  Params q;
+  q.preset = p;
+  switch (p) {
+    case SaPreset::thesis:
+      q.reuse = SaReuse::none;
+      break;
+    case SaPreset::large:
+      // bench/results/table-11-1/MERGE.md: every Table 11.1 target met, 10k-1M vertices.
+      q.aggregation_theta = 0.25;
+      q.cycle_gamma = 2;
+      q.cycle_gamma_levels = 2;
+      q.preserve_modes = true;
+      q.split_sheets = true;
+      q.sheet_strength = true;
+      q.split_bonded = 0.01;
+      q.prolongator_degree = 2;
+      q.prolongator_degree_levels = 1;
+      q.prolongator_truncation = 0.05;
+      q.split_merge = 3;
+      break;
+    case SaPreset::automatic:
+      break;
+  }
+  return q;
+}
+
+SaAmg::Params SaAmg::Params::resolved(int rows) const {
+  if (preset != SaPreset::automatic || rows < large_from) return *this;
+  // The settings that differ from auto's, as keys, read over large's.
+  const auto keys = [](Params p) {
+    Json j;
+    JsonWriter w(j);
+    p.visit(w);
+    return j;
+  };
+  const Json mine = keys(*this), base = keys(of(SaPreset::automatic));
+  Json changed = Json::object();
+  for (auto it = mine.begin(); it != mine.end(); ++it) {
+    const bool named = std::find(given.begin(), given.end(), it.key()) != given.end();
+    if (it.key() != "preset" && (named || base.at(it.key()) != it.value())) changed[it.key()] = it.value();
+  }
+  Params out = of(SaPreset::large);
+  std::vector<std::string> errors;
+  JsonReader r(changed, "", errors);
+  out.visit(r);
+  return out;  // written by the same visit: nothing to report
+}
+
 Checker SaAmg::validate(const Params& p) {
   Checker c("SaAmg::Params");
+  c.require(p.large_from >= 1, "large_from", p.large_from, ">= 1");
   c.require(p.theta > 0 && p.theta < 1, "theta", p.theta, "in (0, 1)")
       .require(p.diagonal_dominance >= 0, "diagonal_dominance", p.diagonal_dominance, ">= 0")
       .require(p.coarse_size >= 1, "coarse_size", p.coarse_size, ">= 1")
@@ -90,26 +143,23 @@ Checker SaAmg::validate(const Params& p) {
                "in [1, 3]")
       .require(p.prolongator_degree_levels >= 1 && p.prolongator_degree_levels <= 30, "prolongator_degree_levels",
                p.prolongator_degree_levels, "in [1, 30]")
-      .require(!p.implicit_prolongator || p.prolongator_degree == 1, "prolongator_degree", p.prolongator_degree,
-               "1 when implicit_prolongator is true (the implicit P is one smoothing step)")
-      .require(!p.implicit_prolongator || !p.preserve_modes, "preserve_modes", p.preserve_modes,
-               "false when implicit_prolongator is true (the implicit P is applied from A and Phat)")
       .require(p.prolongator_truncation >= 0 && p.prolongator_truncation < 1, "prolongator_truncation",
                p.prolongator_truncation, "in [0, 1)")
-      .require(p.prolongator_max_blocks >= 0, "prolongator_max_blocks", p.prolongator_max_blocks, ">= 0")
       .require(p.split_bonded >= 0 && p.split_bonded <= 1, "split_bonded", p.split_bonded, "in [0, 1]")
       .require(!p.sheet_strength || p.split_sheets, "sheet_strength", p.sheet_strength,
                "false unless split_sheets is true (it measures strength within the sheets)")
       .require(p.split_merge >= 0, "split_merge", p.split_merge, ">= 0")
       .require(p.split_merge == 0 || p.split_sheets, "split_merge", p.split_merge,
-               "0 unless split_sheets is true (it merges within the sheets)");
-  // Both ways of dropping prolongator blocks need the mode repair.
-  auto trims = [&](const char* key, auto value) {
-    c.require(value == 0 || p.preserve_modes, key, value,
-              "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)");
-  };
-  trims("prolongator_truncation", p.prolongator_truncation);
-  trims("prolongator_max_blocks", p.prolongator_max_blocks);
+               "0 unless split_sheets is true (it merges within the sheets)")
+      .require(p.prolongator_truncation == 0 || p.preserve_modes, "prolongator_truncation", p.prolongator_truncation,
+               "0 unless preserve_modes is true (it repairs the rigid modes the dropped blocks carried)");
+  // Under auto the large settings must hold too, with the keys given beside it.
+  if (p.preset == SaPreset::automatic) {
+    const Checker large = validate(p.resolved(std::numeric_limits<int>::max()));
+    for (const std::string& v : large.violations())
+      if (std::find(c.violations().begin(), c.violations().end(), v) == c.violations().end())
+        c.fail(fmt::format("from large_from = {} fine rows (preset auto takes the large settings): {}", p.large_from, v));
+  }
   return c;
 }
 
@@ -163,10 +213,6 @@ void round_to_storage(Level<B>& L, const TransposeIndex& T, ValueStorage storage
   if (storage != ValueStorage::fixed16) {
     L.Pscale = {};
     L.Pq = {};
-  }
-  if (storage == ValueStorage::single_precision) {
-    for (double& x : v) x = static_cast<double>(static_cast<float>(x));
-    return;
   }
   if (storage != ValueStorage::fixed16) return;
   const int rows = L.P.rows();
@@ -263,7 +309,7 @@ std::vector<int> coarsen(BuildContext& ctx, Level<B>& L, sa::SheetEdges& sheets,
     }
     if (prm.split_sheets) sheets = sa::coarse_sheet_edges(sheets, L.aggs);
   }
-  if (prm.filtered_smoothing && prm.theta != aggregation_threshold(prm)) {
+  if (prm.theta != aggregation_threshold(prm)) {
     // The smoothing filter's own threshold; blocks touching a special node stay
     // weak as in L.strong.
     ScopedTimer t(T.strength);
@@ -286,37 +332,6 @@ long long restrict_prolongator(BlockMatrix<B, 6>& P, const std::vector<int>& ptr
   const long long dropped = static_cast<long long>(P.nnz()) - R.nnz();
   P = std::move(R);
   return dropped;
-}
-
-/// What the cycle needs to apply an implicit prolongator P = Z (I - omega D^-1 A_f) Phat from
-/// A (`implicit_prolongator`, level 0): Phat, the aggregates' nodes and the strong flags as
-/// bits; on other levels, nothing.
-template <int B>
-void keep_implicit_prolongator(Level<B>& L, const std::vector<std::uint8_t>* strong, double omega, const sa::Tentative& tent) {
-  if (!L.implicit) {
-    L.Qf = {};
-    L.agg_ptr = {};
-    L.agg_nodes = {};
-    L.strong_bits = {};
-    return;
-  }
-  const auto A = L.A();
-  const int n = A.rows;
-  L.omega = omega;
-  L.Qf.assign(tent.Q.begin(), tent.Q.end());
-  const std::vector<int>& agg = L.aggs.node_agg;
-  L.agg_ptr.assign(L.aggs.count + 1, 0);
-  for (int i = 0; i < n; ++i)
-    if (agg[i] >= 0) ++L.agg_ptr[agg[i] + 1];
-  for (int J = 0; J < L.aggs.count; ++J) L.agg_ptr[J + 1] += L.agg_ptr[J];
-  L.agg_nodes.assign(L.agg_ptr.back(), 0);
-  std::vector<int> fill(L.agg_ptr.begin(), L.agg_ptr.end() - 1);
-  for (int i = 0; i < n; ++i)
-    if (agg[i] >= 0) L.agg_nodes[fill[agg[i]]++] = i;
-  L.strong_bits.assign(strong ? (static_cast<std::size_t>(A.nnz()) + 63) / 64 : 0, 0);
-  if (strong)
-    for (int k = 0; k < A.nnz(); ++k)
-      if ((*strong)[k]) L.strong_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
 
 /// Stage 4, the coarse operator A_c = P^T A P of level L into C (the symbolic product unless
@@ -348,31 +363,21 @@ void coarse_operator(const Level<B>& L, const TransposeIndex& PT, bool reuse, bo
   }
 }
 
-/// After the Galerkin product: keeps P in the storage the cycle reads (or nothing for an
-/// implicit P), its restriction chunks, and (reuse = none) frees the coarsening structure,
+/// After the Galerkin product: keeps P in the storage the cycle reads, its restriction chunks, and (reuse = none) frees the coarsening structure,
 /// which nothing reads again before the next setup rebuilds it. Returns the chunk count.
 template <int B>
 int keep_for_cycle(Level<B>& L, const SaAmg::Params& prm) {
-  L.Pf = {};
-  if (L.implicit) {  // the cycle applies P from A, Qf and the aggregates
-    L.P.clear();
-    L.Pq = {};
-    L.Pscale = {};
-  } else if (prm.prolongator_storage == ValueStorage::single_precision) {  // the cycle reads P from here on
-    L.Pf.assign(L.P.values().begin(), L.P.values().end());
+  if (prm.prolongator_storage == ValueStorage::fixed16)  // Pq holds it (round_to_storage)
     std::vector<double>().swap(L.P.values());
-  } else if (prm.prolongator_storage == ValueStorage::fixed16) {  // Pq holds it (round_to_storage)
-    std::vector<double>().swap(L.P.values());
-  }
   // The cycle restricts by P's rows (`restrict_rows`), with no transpose index (8 bytes per
   // block of P).
-  L.rchunks = L.implicit ? std::vector<int>{} : sa::restriction_chunks<B>(L.P.view());
+  L.rchunks = sa::restriction_chunks<B>(L.P.view());
   if (prm.reuse == SaReuse::none) {
     // Only `aggregates` refreshes values on the kept structure.
     std::vector<std::uint8_t>().swap(L.strong);
     std::vector<std::uint8_t>().swap(L.filter);
     std::vector<std::uint8_t>().swap(L.special);
-    if (!L.implicit) std::vector<int>().swap(L.aggs.node_agg);
+    std::vector<int>().swap(L.aggs.node_agg);
     std::vector<std::uint8_t>().swap(L.dummy);
   }
   return std::max(0, static_cast<int>(L.rchunks.size()) - 1);
@@ -417,7 +422,6 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       L.special = {};
       L.aggs = {};
       L.P.clear();
-      L.Pf = {};
       L.Pq = {};
       L.Pscale = {};
       make_coarsest(L, prm);
@@ -448,20 +452,18 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
   L.dummy = tent.dummy;
   L.deficient = tent.deficient;
   st.deficient = tent.deficient;
-  const std::vector<std::uint8_t>* strong =
-      !prm.filtered_smoothing ? nullptr : (L.filter.empty() ? &L.strong : &L.filter);
+  // The prolongator is smoothed with A_f, the strong blocks (weak ones lumped into the diagonal).
+  const std::vector<std::uint8_t>* strong = L.filter.empty() ? &L.strong : &L.filter;
   const double omega = 4.0 / (3.0 * L.lambda);
-  L.implicit = prm.implicit_prolongator && index == 0;
   const int degree = index < prm.prolongator_degree_levels ? prm.prolongator_degree : 1;
   // P's transpose index, for the fixed16 scales and the Galerkin product only (the cycle
   // restricts by P's rows): built for each setup, freed after the Galerkin product.
   TransposeIndex PT;
   {
     ScopedTimer t(T.smoothing);
-    // An implicit P is formed here for the Galerkin product and freed after it.
     // A wider P (degree > 1) is formed from the one-step pattern each time.
     // A truncated P is formed whole and restricted to its first setup's pattern under reuse.
-    const bool truncating = prm.prolongator_truncation > 0 || prm.prolongator_max_blocks > 0;
+    const bool truncating = prm.prolongator_truncation > 0;
     if (!reuse || L.P.rows() == 0 || degree > 1 || truncating) L.P = sa::prolongator_pattern<B>(A, strong, L.aggs);
     L.P.values().resize(static_cast<std::size_t>(B * 6) * L.P.nnz());  // reallocated if a compact storage freed it
     sa::prolongator_values<B>(A, L.Dinv, strong, L.aggs, tent, omega, L.P);
@@ -469,27 +471,22 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
     if (truncating && reuse) {
       st.truncated = restrict_prolongator<B>(L.P, L.kept_ptr, L.kept_col);
     } else if (truncating) {
-      st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation, prm.prolongator_max_blocks);
+      st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation);
       if (prm.reuse == SaReuse::aggregates) {
         L.kept_ptr = L.P.row_ptr();
         L.kept_col = L.P.col();
       }
     }
     if (prm.preserve_modes) {
-      if (strong || st.truncated > 0)  // the filter, or the dropped blocks, moved P Kc
-        st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
+      // The filter, and any dropped blocks, moved P Kc.
+      st.mode_correction = sa::preserve_modes<B>(A, L.Dinv, L.aggs, omega, degree, K, tent.Kc, L.P);
       K = NullSpace();
     }
     if (!reuse && prm.reuse == SaReuse::none) L.P.prune_zero_blocks();
     PT.build(L.P.view());
-    if (!L.implicit)  // rounded before the Galerkin product: A_c = P^T A P for the stored P
-      round_to_storage(L, PT, prm.prolongator_storage);
+    round_to_storage(L, PT, prm.prolongator_storage);  // before the Galerkin product: A_c = P^T A P for the stored P
   }
   st.nnz_p = L.P.nnz();
-  {
-    ScopedTimer t(T.other);
-    keep_implicit_prolongator(L, strong, omega, tent);
-  }
   tent.Q = {};
   keep_inverses(L, prm);
 
@@ -549,9 +546,10 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
   // can leave the block count unchanged while moving blocks.
   const std::uint64_t pattern = pattern_fingerprint(A);
   const bool same_pattern = I.built && I.fine_rows == n && I.fine_nnz == A.num_blocks() && I.fine_pattern == pattern;
-  const bool reuse = same_pattern && prm_.reuse != SaReuse::none;
+  const bool reuse = same_pattern && active_.reuse != SaReuse::none;
   stats_.reused = reuse;
-  if (reuse && prm_.reuse == SaReuse::frozen) return Status::success;
+  if (reuse && active_.reuse == SaReuse::frozen) return Status::success;
+  if (!reuse) active_ = prm_.resolved(n);  // kept with the structure it built
 
   SaSetupTimes times;
   double total = 0;
@@ -560,11 +558,11 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
     ScopedTimer t(total);
     if (!reuse) {
       I.coarse.clear();
-      I.coarse.reserve(prm_.max_levels);
+      I.coarse.reserve(active_.max_levels);
       I.fine = std::make_unique<Level<3>>();
     }
     Level<3>& F = *I.fine;
-    if (prm_.reuse == SaReuse::frozen) {
+    if (active_.reuse == SaReuse::frozen) {
       F.own = BlockMatrix<3, 3>(n, n, A.row_ptr(), A.col());
       F.own.values() = A.values();
       if (!filter.empty()) {  // the copy holds Ahat itself: the filters need not outlive setup
@@ -579,7 +577,6 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
       F.external.filter = filter;
       F.uses_external = true;
     }
-    F.res.resize(prm_.implicit_prolongator ? 3 * n : 0);  // the implicit P's residual vector
     Eigen::VectorXd().swap(F.d);  // allocated by the first apply that brings no work vector
     NullSpace K;
     {
@@ -587,7 +584,7 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
       K = sa::rigid_body_modes(*ctx.positions, ctx.constraints && !ctx.constraints->empty() ? ctx.constraints : nullptr);
     }
     stats_.levels.clear();
-    BuildContext bc{prm_, times, stats_.levels, I.coarse};
+    BuildContext bc{active_, times, stats_.levels, I.coarse};
     status = build_level<3>(bc, F, 0, std::move(K), reuse);
   }
   times.total = total;

@@ -77,17 +77,26 @@ enum class SaReuse {
 };
 inline constexpr std::array<std::string_view, 3> sa_reuse_names = {"none", "aggregates", "frozen"};
 
+/// Named settings of `SaAmg::Params` (the key `preset`, read before the others: keys given
+/// beside it change single settings of the preset). docs/linear-solvers.md gives the
+/// measurements behind each.
+enum class SaPreset {
+  automatic,  ///< `thesis` with reuse = aggregates below `large_from` fine rows, `large` from there
+  thesis,     ///< the thesis' V(1,1) hierarchy rebuilt at every setup: reproduces Table 11.1
+  large,      ///< iterations bounded from 10k to 1M vertices and on stacked sheets, at a dearer setup
+};
+inline constexpr std::array<std::string_view, 3> sa_preset_names = {"auto", "thesis", "large"};
+
 /// How the prolongators' values are stored (products always accumulate in double). P is
 /// rounded to the storage before the Galerkin product, so A_c = P^T A P holds exactly for the
 /// stored P and the cycle stays SPD whatever the storage.
 enum class ValueStorage {
   double_precision,  ///< 8 bytes per value
-  single_precision,  ///< float, 4 bytes per value
   fixed16,           ///< 2 bytes per value: P = Q diag(s), Q in int16 and one double scale per
                      ///< coarse dof (column of P), s_c = max_i |P_ic| / 32767: an absolute error
                      ///< of at most 1.5e-5 of the column's largest entry
 };
-inline constexpr std::array<std::string_view, 3> value_storage_names = {"double", "single", "fixed16"};
+inline constexpr std::array<std::string_view, 2> value_storage_names = {"double", "fixed16"};
 
 /// Which upper estimate of lambda_max(D^-1 A) the smoother and omega use (methods/multigrid §4.7).
 enum class LambdaBound {
@@ -113,11 +122,11 @@ struct SaLevelStats {
   bool reordered = false;      ///< aggregates renumbered by RCM (`aggregate_order`)
   int max_aggregate = 0;       ///< largest aggregate (nodes)
   long long nnz_p = 0;         ///< stored blocks of P_l
-  int restriction_chunks = 0;  ///< row chunks of the parallel restriction P_l^T r (0: implicit P_l or coarsest)
+  int restriction_chunks = 0;  ///< row chunks of the parallel restriction P_l^T r (0: coarsest)
   double ritz = 0;             ///< largest Lanczos Ritz value of D^-1 A_l
   double lambda = 0;           ///< the inflated bound used
   double mode_correction = 0;  ///< largest relative change of a row of P by `preserve_modes` (0: off or exact)
-  long long truncated = 0;     ///< blocks of P_l dropped by `prolongator_truncation` and `prolongator_max_blocks`
+  long long truncated = 0;     ///< blocks of P_l dropped by `prolongator_truncation`
 };
 
 /// Setup wall time split [s] (summed over levels).
@@ -281,10 +290,9 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
                       int degree, const NullSpace& K, const NullSpace& Kc, BlockMatrix<B, 6>& P);
 
 /// Zeroes and removes the blocks of each row of P whose Frobenius norm is below `fraction`
-/// times the row's largest, and with `max_blocks` > 0 those below the row's max_blocks-th
-/// largest (ties kept); returns how many. A row keeps at least its largest block.
+/// times the row's largest; returns how many. A row keeps at least its largest block.
 template <int B>
-long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_blocks = 0);
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction);
 
 /// Row chunks [b_k, b_{k+1}) of P (at least `min_rows` rows each but the last) such that the
 /// rows holding a block of any column J fall in two consecutive chunks at most: chunks of
@@ -304,6 +312,15 @@ class SaAmg {
  public:
   static constexpr std::string_view name = "sa";
   struct Params {
+    /// The named settings these start from (see `SaPreset`). The member initialisers below
+    /// are `auto`'s settings below `large_from`; `of` gives every preset's.
+    SaPreset preset = SaPreset::automatic;
+    /// With preset = auto: the fine rows (vertices) from which the hierarchy takes the
+    /// `large` settings. On the hanging cloth with reuse = aggregates, `large` is 1.09x the
+    /// thesis' hierarchy per step at 40k vertices and 1.01x at 161k (its setup costs more
+    /// than its fewer iterations save); on the linear benchmarks it wins from 361k, and its
+    /// iterations stay within 2x from 10k to 1M where the thesis' grow 3.4-4.3x.
+    int large_from = 160000;
     /// Strength threshold relative to the row maximum (methods/multigrid §4.3, the thesis' 0.48): block
     /// (i, j) is strong if mu_ij > theta max_k mu_ik. The prolongator is smoothed with the
     /// filtered matrix A_f of the strong blocks (weak ones lumped into the diagonal).
@@ -312,12 +329,11 @@ class SaAmg {
     /// and special-node detection counts; 0: theta itself (the thesis aggregates along
     /// theta's strong blocks). 0.25 merges about 9 nodes per aggregate instead of 6 on the
     /// sheets: smaller coarse levels, which let degree-2 prolongators and the W-cycle fit in
-    /// 1.5x Diag-PCG's memory (`weft bench linear` solver `sa_ppcg_flat`,
-    /// bench/results/table-11-1/M4-aggregation-theta.md).
+    /// 1.5x Diag-PCG's memory (bench/results/table-11-1/M4-aggregation-theta.md). The `large`
+    /// preset's.
     double aggregation_theta = 0;
     SocMeasure strength = SocMeasure::spectral;
     double diagonal_dominance = 1e-2;  ///< tau_dd: special if sum_j mu_ij < tau_dd
-    bool filtered_smoothing = true;    ///< smooth P with A_f (weak blocks lumped into the diagonal)
     int coarse_size = 50;             ///< stop coarsening at <= this many nodes
     int max_levels = 10;
     double stall_ratio = 0.8;          ///< stop when n_{l+1} > stall_ratio n_l
@@ -352,15 +368,13 @@ class SaAmg {
     /// fine one smoothed with the whole A (the truncation-and-repair of classical AMG's
     /// interpolation, Stuben 2001, with SA's rigid modes in place of the constant).
     double prolongator_truncation = 0;
-    /// Keep at most this many blocks (the largest) in each row of a smoothed prolongator
-    /// (0: no cap), with the same repair as `prolongator_truncation`: a cap narrows the wide
-    /// rows only, where a relative threshold cuts every row alike.
-    int prolongator_max_blocks = 0;
-    SaReuse reuse = SaReuse::none;
-    /// Storage of the prolongators' values (see `ValueStorage`). Single precision and fixed16
-    /// left SA+PPCG's iterations unchanged on every example at 10k-361k (and 1M pinned)
-    /// (bench/results/table-11-1/M-memory.md, M3-fixed16.md); single halves P's value bytes,
-    /// fixed16 quarters them.
+    /// What a setup with an unchanged pattern keeps (see `SaReuse`). Keeping the aggregates
+    /// and patterns between Newton iterations and steps halved the SA setup of the hanging
+    /// cloth at 40k vertices (2.82 -> 2.30 s per step) at the same iterations.
+    SaReuse reuse = SaReuse::aggregates;
+    /// Storage of the prolongators' values (see `ValueStorage`). fixed16 left SA+PPCG's
+    /// iterations unchanged on every example at 10k-361k (and 1M pinned) at a quarter of P's
+    /// value bytes (bench/results/table-11-1/M-memory.md, M3-fixed16.md).
     ValueStorage prolongator_storage = ValueStorage::fixed16;
     /// Store the coarse operators A_l (l >= 1) in single precision: each block is formed in
     /// double by the Galerkin product and rounded once; smoothing, the next level's Galerkin
@@ -375,15 +389,7 @@ class SaAmg {
     /// (36 bytes per vertex in single precision): a closed-form 3x3 solve per row and
     /// smoothing step, beside a row product of about 13 blocks. The setup still inverts the
     /// blocks in double for the Lanczos bound and the prolongator smoothing, then frees them.
-    /// An `implicit_prolongator` solves with the same blocks.
     bool fine_inverses_on_the_fly = true;
-    /// Apply the fine level's prolongator P = Z (I - omega D^-1 A_f) Phat from A instead of
-    /// storing it (Z: zero rows on special nodes). P is still formed for the Galerkin product,
-    /// then freed; the cycle keeps Phat (single precision), the aggregates and the strong
-    /// flags, at two extra products with A per cycle. Smaller than a P stored in single or
-    /// double precision; about the size of the default fixed16 P (about 40 bytes per block),
-    /// which the cycle restricts by rows with no transpose index.
-    bool implicit_prolongator = false;
     /// Split each aggregate into its sheets. On the fine level a sheet is a component of the
     /// aggregate's couplings whose 3x3 block is not rank-one (a contact or repulsion spring's
     /// k n n^T is, and so is a flat hinge's coupling of its two wing tips; membrane blocks are
@@ -393,11 +399,11 @@ class SaAmg {
     /// stack cannot give (bending the stack would shear it). Aggregation still follows the
     /// springs, so the per-layer pieces line up from layer to layer and the coarse space keeps
     /// the stack's common normal motion. Regular dropVertical at 40k: 69.5 -> 25.5 iterations
-    /// at 2.2x SA's own memory; with aggregation_theta = 0.25 (bench solver `sa_ppcg_sheets`)
-    /// 78.5 -> 36.5 at 160k and 92.5 -> 54 at 361k, at 1.45x and 1.03x. Irregular
-    /// dropVertical, whose oblique springs bond the layers in shear, gets slower (30 -> 49.5
-    /// iterations at 361k with `sa_ppcg_sheets`): off by default
-    /// (bench/results/table-11-1/DV-regular-accordion.md, section 5).
+    /// at 2.2x SA's own memory; with aggregation_theta = 0.25, 78.5 -> 36.5 at 160k and
+    /// 92.5 -> 54 at 361k, at 1.45x and 1.03x. Alone, irregular dropVertical, whose oblique
+    /// springs bond the layers in shear, gets slower (30 -> 49.5 iterations at 361k)
+    /// (bench/results/table-11-1/DV-regular-accordion.md, section 5); `split_bonded` keeps
+    /// such aggregates whole. The `large` preset's.
     bool split_sheets = false;
     /// With `split_sheets`: aggregation's strength threshold is relative to each node's
     /// largest coupling within its sheet, not to its springs. On dropVertical the springs
@@ -413,7 +419,7 @@ class SaAmg {
     /// the split cut off, or a small leftover) joins the larger neighbouring aggregate of its
     /// sheet it shares the most sheet couplings with (0: none). Each piece is a row of the
     /// coarse operator A_1, SA's largest array, with as many neighbours as a whole aggregate.
-    /// On regular dropVertical at 160k (bench solver sa_ppcg_lean2t_sheets) 3 merges 3269 of
+    /// On regular dropVertical at 160k (the `large` preset without it) 3 merges 3269 of
     /// 21265 fine aggregates: A_1 820k -> 562k blocks, SA+PPCG's memory 1.56x -> 1.39x
     /// Diag-PCG's, at 26.6 -> 27.1 iterations (bench/results/table-11-1/MERGE.md).
     int split_merge = 0;
@@ -424,9 +430,45 @@ class SaAmg {
     /// out-of-plane fields. P keeps its pattern (no memory), at one product of A with six
     /// vectors per prolongator step and a 6x6 solve per row in the setup.
     bool preserve_modes = false;
+    /// The keys a scene gave beside the preset (set when read): under `auto` they hold at
+    /// every size, as does any setting that differs from auto's.
+    std::vector<std::string> given;
+
+    /// Collects the keys a reader's object gives (see `given`).
+    template <class R>
+    struct GivenKeys {
+      const R* reader;
+      std::vector<std::string> keys;
+      template <class T>
+      void field(const char* key, T&, const FieldInfo&) { note(key); }
+      template <class E, class Names>
+      void choice(const char* key, E&, const Names&, const char*) { note(key); }
+      void note(const char* key) {
+        if (reader->has(key)) keys.emplace_back(key);
+      }
+    };
+    /// The settings of a preset (`auto`: those below `large_from`).
+    static Params of(SaPreset p);
+    /// The settings the hierarchy uses for a fine level of `rows` nodes: under `auto` from
+    /// `large_from` rows, `large`'s with the keys given and every setting that differs from
+    /// auto's kept.
+    Params resolved(int rows) const;
 
     template <class V>
     void visit(V& v) {
+      v.choice("preset", preset, sa_preset_names,
+               "named settings the others change: auto (the thesis' hierarchy kept between setups below large_from vertices, large from there), thesis (rebuilt at every setup: Table 11.1), large (iterations bounded to 1M vertices and on stacked sheets)");
+      if constexpr (requires { v.has("preset"); })
+        if (v.has("preset")) {  // reading: the preset first, then the keys given beside it
+          const SaPreset chosen = preset;
+          *this = of(chosen);
+        }
+      visit_settings(v);
+    }
+    /// Every key but `preset`.
+    template <class V>
+    void visit_settings(V& v) {
+      v.field("large_from", large_from, {Unit::none, Range::ge(1), "with preset auto: fine rows (vertices) from which the large settings apply"});
       v.field("theta", theta,
               {Unit::none, Range::open(0, 1), "strength threshold relative to the row's largest mu_ij; the prolongator is smoothed with the strong blocks"});
       v.field("aggregation_theta", aggregation_theta,
@@ -434,8 +476,6 @@ class SaAmg {
       v.choice("strength", strength, soc_measure_names, "measure of the scaled block A_ii^-1/2 A_ij A_jj^-1/2");
       v.field("diagonal_dominance", diagonal_dominance,
               {Unit::none, Range::ge(0), "a node with sum_j mu_ij below this is special (relaxation only)"});
-      v.field("filtered_smoothing", filtered_smoothing,
-              {Unit::none, Range::any(), "smooth the prolongator with the filtered matrix (weak blocks lumped into the diagonal)"});
       v.field("coarse_size", coarse_size, {Unit::none, Range::ge(1), "stop coarsening at this many nodes or fewer"});
       v.field("max_levels", max_levels, {Unit::none, Range::closed(1, 30), "most levels of the hierarchy"});
       v.field("stall_ratio", stall_ratio, {Unit::none, Range::open_closed(0, 1), "stop when a level keeps more than this fraction of the nodes"});
@@ -456,19 +496,15 @@ class SaAmg {
               {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
       v.field("prolongator_truncation", prolongator_truncation,
               {Unit::none, Range::closed_open(0, 1), "drop the blocks of each prolongator row below this fraction of the row's largest (Frobenius norm); preserve_modes then repairs the rigid modes (0: keep all)"});
-      v.field("prolongator_max_blocks", prolongator_max_blocks,
-              {Unit::none, Range::ge(0), "keep at most this many blocks, the largest, in each prolongator row; preserve_modes then repairs the rigid modes (0: no cap)"});
       v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
       v.choice("prolongator_storage", prolongator_storage, value_storage_names,
-               "storage of the prolongators' values: double, single (float) or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");
+               "storage of the prolongators' values: double or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");
       v.field("single_coarse_operators", single_coarse_operators,
               {Unit::none, Range::any(), "store the coarse operators in single precision (formed in double, rounded once; products in double)"});
       v.field("single_block_inverses", single_block_inverses,
               {Unit::none, Range::any(), "keep the smoother's block inverses in single precision after the setup (products in double)"});
       v.field("fine_inverses_on_the_fly", fine_inverses_on_the_fly,
               {Unit::none, Range::any(), "the fine level's smoother solves with A's diagonal blocks at each use instead of storing their inverses"});
-      v.field("implicit_prolongator", implicit_prolongator,
-              {Unit::none, Range::any(), "apply the fine level's prolongator from A instead of storing it (two more products with A per cycle)"});
       v.field("split_sheets", split_sheets,
               {Unit::none, Range::any(), "split each aggregate into its sheets: on the fine level the components of its couplings that are not rank-one (springs k n n^T are), on coarse levels those inherited"});
       v.field("sheet_strength", sheet_strength,
@@ -481,6 +517,12 @@ class SaAmg {
               {Unit::none, Range::any(), "correct the smoothed prolongator, within its pattern, to map the coarse near null space to the fine one smoothed with the whole A (the filter loses the rotations)"});
       v.choice("aggregate_order", aggregate_order, aggregate_order_names,
                "numbering of the aggregates, the next level's row order: natural (by seed), rcm (reverse Cuthill-McKee, for locality of the coarse products) or auto (rcm where it halves the mean number distance of coupled aggregates)");
+      if constexpr (requires { v.has("preset"); }) {  // reading: note the keys the object gave
+        GivenKeys<V> g{&v, {}};
+        Params probe;
+        probe.visit_settings(g);
+        given = std::move(g.keys);
+      }
     }
   };
   static Checker validate(const Params& p);
@@ -530,6 +572,7 @@ class SaAmg {
  private:
   struct Impl;  // the levels (linear/sa_internal.hpp)
   Params prm_;
+  Params active_;  // prm_ resolved for the last setup's size (`Params::resolved`)
   SaStats stats_;
   int widened_ = 0;
   std::unique_ptr<Impl> impl_;

@@ -173,65 +173,13 @@ void coarsest_solve(const Level<B>& L, const SaAmg::Params& prm, const double* f
 }
 
 /// f(values of P, column scales or nullptr): P's values as the cycle reads them
-/// (prolongator_storage: double, float, or int16 with one scale per column).
+/// (prolongator_storage: double, or int16 with one scale per column).
 template <int B, class F>
 void with_prolongator_values(const Level<B>& L, F&& f) {
   if (!L.Pq.empty())
     f(L.Pq.data(), L.Pscale.data());
-  else if (!L.Pf.empty())
-    f(L.Pf.data(), static_cast<const double*>(nullptr));
   else
     f(L.P.values().data(), static_cast<const double*>(nullptr));
-}
-
-/// Row i of A_f w (transpose: of A_f^T w), A_f the matrix P was smoothed with: A, with the
-/// weak blocks lumped into the diagonal when the level keeps strong flags. A_f's off-diagonal
-/// blocks are symmetric, its lumped diagonal blocks are not: A_f^T's diagonal block i is the
-/// diagonal block of A plus sum over weak j of A_ij^T. Read through the vertex filters of a
-/// prefiltered fine level as the setup read it.
-template <int B>
-Vec<B> smoothing_row(const Level<B>& L, const BsrView<B, B>& A, int i, const double* w, bool transpose) {
-  using In = Eigen::Map<const Vec<B>>;
-  const std::uint64_t* bits = L.strong_bits.empty() ? nullptr : L.strong_bits.data();
-  auto kept = [&](int k, int j) { return j == i || !bits || ((bits[k >> 6] >> (k & 63)) & 1u); };
-  Vec<B> acc = Vec<B>::Zero();
-  if constexpr (B == 3) {
-    if (!A.src && !A.valf) {  // the fine level: 3x3 blocks in double, maybe filtered
-      const VertexFilterView& F = A.filter;
-      const int si = F.empty() ? -1 : F.slot[i];
-      Vec<3> lumped_t = Vec<3>::Zero();  // transpose: sum over weak j of Ahat_ij^T w_i = S_j A_ij^T S_i w_i
-      const Vec<3> Swi = si >= 0 ? Vec<3>(F.filter(si) * In(w + 3 * i)) : Vec<3>(In(w + 3 * i));
-      for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-        const int j = A.col[k], sj = F.empty() ? -1 : F.slot[j];
-        const Eigen::Map<const BlockOf<3, 3>> Aij(A.val + 9 * static_cast<std::ptrdiff_t>(k));
-        if (transpose && !kept(k, j)) {
-          const Vec<3> v = Aij.transpose() * Swi;
-          lumped_t += sj >= 0 ? Vec<3>(F.filter(sj) * v) : v;
-          continue;
-        }
-        const In y(w + 3 * (kept(k, j) ? j : i));
-        if (sj < 0)
-          acc.noalias() += Aij * y;
-        else
-          acc.noalias() += Aij * (F.filter(sj) * y);
-      }
-      if (si >= 0) {
-        const Vec<3> wi = In(w + 3 * i);
-        acc = (F.filter(si) * acc + F.sigma[si] * (wi - F.filter(si) * wi)).eval();
-      }
-      return acc + lumped_t;
-    }
-  }
-  for (int k = A.row_ptr[i]; k < A.row_ptr[i + 1]; ++k) {
-    const int j = A.col[k];
-    if (kept(k, j))
-      acc.noalias() += A.block(i, k) * In(w + B * j);
-    else if (transpose)
-      acc.noalias() += A.block(i, k).transpose() * In(w + B * i);
-    else
-      acc.noalias() += A.block(i, k) * In(w + B * i);
-  }
-  return acc;
 }
 
 /// fc = (P diag(s))^T r by P's rows: each row i adds P_iJ^T r_i to fc_J. The even chunks of
@@ -261,56 +209,16 @@ void restrict_rows(const BsrView<R, 6>& P, const std::vector<int>& chunks, const
   }
 }
 
-/// fc = P^T r. Implicit P: P^T = Phat^T (I - omega A_f^T D^-1) Z, with w as work vector.
+/// fc = P^T r.
 template <int B>
-void restrict_to(const Level<B>& L, const double* r, double* fc, double* w) {
-  if (!L.implicit) {
-    with_prolongator_values(L, [&](const auto* p, const double* s) { restrict_rows(L.P.view(), L.rchunks, p, r, fc, s); });
-    return;
-  }
-  const auto A = L.A();
-  const int n = A.rows, nc = static_cast<int>(L.agg_ptr.size()) - 1;
-  const int* agg = L.aggs.node_agg.data();
-  with_inverses(L, [&](const auto* Dinv) {
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-    for (int i = 0; i < n; ++i)
-      Eigen::Map<Vec<B>>(w + B * i) =
-          agg[i] >= 0 ? inverse_times(A, Dinv, i, Vec<B>(Eigen::Map<const Vec<B>>(r + B * i))) : Vec<B>::Zero();
-  });
-#pragma omp parallel for schedule(static) if (nc > parallel_rows / 8)
-  for (int J = 0; J < nc; ++J) {
-    Vec<6> acc = Vec<6>::Zero();
-    for (int t = L.agg_ptr[J]; t < L.agg_ptr[J + 1]; ++t) {
-      const int i = L.agg_nodes[t];
-      const Vec<B> v = Eigen::Map<const Vec<B>>(r + B * i) - L.omega * smoothing_row(L, A, i, w, /*transpose=*/true);
-      acc.noalias() += value_block<B, 6>(L.Qf.data(), i).transpose() * v;
-    }
-    Eigen::Map<Vec<6>>(fc + 6 * J) = acc;
-  }
+void restrict_to(const Level<B>& L, const double* r, double* fc) {
+  with_prolongator_values(L, [&](const auto* p, const double* s) { restrict_rows(L.P.view(), L.rchunks, p, r, fc, s); });
 }
 
-/// x += P xc. Implicit P: P = Z (I - omega D^-1 A_f) Phat, with t as work vector.
+/// x += P xc.
 template <int B>
-void prolong_add(const Level<B>& L, const double* xc, double* x, double* t) {
-  if (!L.implicit) {
-    with_prolongator_values(L, [&](const auto* p, const double* s) { multiply_add(L.P.view(), p, xc, x, s); });
-    return;
-  }
-  const auto A = L.A();
-  const int n = A.rows;
-  const int* agg = L.aggs.node_agg.data();
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-  for (int i = 0; i < n; ++i)
-    Eigen::Map<Vec<B>>(t + B * i) =
-        agg[i] >= 0 ? Vec<B>(value_block<B, 6>(L.Qf.data(), i) * Eigen::Map<const Vec<6>>(xc + 6 * agg[i])) : Vec<B>::Zero();
-  with_inverses(L, [&](const auto* Dinv) {
-#pragma omp parallel for schedule(static) if (n > parallel_rows)
-    for (int i = 0; i < n; ++i) {
-      if (agg[i] < 0) continue;
-      Eigen::Map<Vec<B>>(x + B * i) +=
-          Eigen::Map<const Vec<B>>(t + B * i) - L.omega * inverse_times(A, Dinv, i, smoothing_row(L, A, i, t, false));
-    }
-  });
+void prolong_add(const Level<B>& L, const double* xc, double* x) {
+  with_prolongator_values(L, [&](const auto* p, const double* s) { multiply_add(L.P.view(), p, xc, x, s); });
 }
 
 /// One cycle on level L: x = B_L f from a zero guess, or (zero_guess false, L not the
@@ -326,11 +234,9 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   const Level<6>& C = coarse[index];
   const auto A = L.A();
   chebyshev(L, prm, f, x, zero_guess, d);  // pre-smoothing (G*)
-  // The residual goes to the smoother's work vector, free until the post-smoothing (an
-  // implicit P needs that one for itself and has its own residual vector).
-  double* r = L.implicit ? L.res.data() : d;
-  residual(A, f, x, r);
-  restrict_to(L, r, C.f.data(), d);
+  // The residual goes to the smoother's work vector, free until the post-smoothing.
+  residual(A, f, x, d);
+  restrict_to(L, d, C.f.data());
   cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data());
   // mu-cycle on the first cycle_gamma_levels coarse levels: x_c += V_c (f_c - A_c x_c), so the
   // correction is (I - (I - V_c A_c)^gamma) A_c^-1 f_c, symmetric in A_c (methods/multigrid §2.4). The
@@ -338,7 +244,7 @@ void cycle(const Level<B>& L, const std::vector<Level<6>>& coarse, int index, co
   if (!C.coarsest && index + 1 <= prm.cycle_gamma_levels)
     for (int r = 1; r < prm.cycle_gamma; ++r)
       cycle(C, coarse, index + 1, prm, C.f.data(), C.x.data(), C.d.data(), /*zero_guess=*/false);
-  prolong_add(L, C.x.data(), x, d);
+  prolong_add(L, C.x.data(), x);
   chebyshev(L, prm, f, x, /*zero_guess=*/false, d);  // post-smoothing (G), same polynomial
 }
 
@@ -364,7 +270,7 @@ void SaAmg::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd&
   z.resize(r.size());
   if (r.size() == 0) return;
   work.resize(r.size());  // keeps the storage when the size is unchanged
-  cycle(*I.fine, I.coarse, 0, prm_, r.data(), z.data(), work.data());
+  cycle(*I.fine, I.coarse, 0, active_, r.data(), z.data(), work.data());
 }
 
 void SaAmg::smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const {
@@ -372,11 +278,11 @@ void SaAmg::smooth(int l, const Eigen::VectorXd& f, Eigen::VectorXd& x) const {
   WEFT_ASSERT(l >= 0 && l < levels(), "level {} out of range", l);
   if (l == 0) {
     WEFT_ASSERT(x.size() == f.size() && f.size() == 3 * I.fine->n(), "size mismatch");
-    chebyshev(*I.fine, prm_, f.data(), x.data(), false, work_of(*I.fine));
+    chebyshev(*I.fine, active_, f.data(), x.data(), false, work_of(*I.fine));
   } else {
     const Level<6>& C = I.coarse[l - 1];
     WEFT_ASSERT(x.size() == f.size() && f.size() == 6 * C.n(), "size mismatch");
-    chebyshev(C, prm_, f.data(), x.data(), false, work_of(C));
+    chebyshev(C, active_, f.data(), x.data(), false, work_of(C));
   }
 }
 
@@ -396,24 +302,21 @@ Eigen::MatrixXd SaAmg::level_matrix(int l) const {
 Eigen::MatrixXd SaAmg::prolongator(int l) const {
   WEFT_ASSERT(l >= 0 && l + 1 < levels(), "level {} has no prolongator", l);
   auto dense = [](const auto& L) {
-    if (L.implicit || !L.Pq.empty()) {  // column by column, through the cycle's own application of P
-      const int n = L.n(), nc = L.implicit ? static_cast<int>(L.agg_ptr.size()) - 1 : L.P.cols();
+    if (!L.Pq.empty()) {  // column by column, through the cycle's own application of P
+      const int n = L.n(), nc = L.P.cols();
       constexpr int B = std::remove_cvref_t<decltype(L)>::block;
       Eigen::MatrixXd D = Eigen::MatrixXd::Zero(B * n, 6 * nc);
       Eigen::VectorXd ec = Eigen::VectorXd::Zero(6 * nc), x(B * n);
       for (int c = 0; c < 6 * nc; ++c) {
         ec[c] = 1;
         x.setZero();
-        prolong_add(L, ec.data(), x.data(), work_of(L));
+        prolong_add(L, ec.data(), x.data());
         D.col(c) = x;
         ec[c] = 0;
       }
       return D;
     }
-    if (L.Pf.empty()) return L.P.to_dense();
-    auto P = L.P;  // the pattern, with the float values in double (a diagnostic: a copy is fine)
-    P.values().assign(L.Pf.begin(), L.Pf.end());
-    return P.to_dense();
+    return L.P.to_dense();
   };
   if (l == 0) return dense(*impl_->fine);
   return dense(impl_->coarse[l - 1]);

@@ -57,23 +57,14 @@ struct Level {
   int sheet_splits = 0;  // aggregates added by split_sheets
   int sheet_merges = 0;  // aggregates removed by split_merge
   bool reordered = false;  // aggregates renumbered (aggregate_order)
-  BlockMatrix<B, 6> P;           // pattern; its values are freed when Pf or Pq holds them
+  BlockMatrix<B, 6> P;           // pattern; its values are freed when Pq holds them
   std::vector<int> kept_ptr, kept_col;  // a truncated P's pattern, kept for reuse = aggregates
-  std::vector<float> Pf;         // prolongator_storage single: P's values, B x 6 row-major blocks
   std::vector<std::int16_t> Pq;  // prolongator_storage fixed16: P = Pq diag(Pscale)
   std::vector<double> Pscale;    // one scale per coarse dof
   std::vector<int> rchunks;      // row chunks of the restriction P^T r (`restriction_chunks`)
   std::vector<std::uint8_t> dummy;  // per coarse dof
   int deficient = 0;
   bool coarsest = false;
-
-  // implicit_prolongator (level 0): P = Z (I - omega D^-1 A_f) Phat is applied from A and
-  // never stored (Z zeroes the rows of special nodes). aggs.node_agg is kept.
-  bool implicit = false;
-  double omega = 0;
-  std::vector<float> Qf;                   // Phat: one B x 6 block per node (zero on special nodes)
-  std::vector<int> agg_ptr, agg_nodes;     // the nodes of each aggregate, by increasing index
-  std::vector<std::uint64_t> strong_bits;  // filtered smoothing: bit k = block k of A is strong
 
   // Coarsest solve.
   int direct = 0;  // 0: smoother only, 1: LLT, 2: LDLT
@@ -82,16 +73,14 @@ struct Level {
 
   // Work vectors (apply is const; one apply at a time).
   // f, x: the level's right-hand side and solution (coarse levels); d: the smoother's
-  // correction, also the residual restricted to the next level; res: the residual when the
-  // implicit P uses d itself (level 0 only).
-  mutable Eigen::VectorXd f, x, res, d;
+  // correction, also the residual restricted to the next level.
+  mutable Eigen::VectorXd f, x, d;
 
   std::size_t memory_bytes() const {
     auto vb = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t m = own.memory_bytes() + vb(Dinv) + vb(Dinvf) + vb(strong) + vb(filter) + vb(special) + vb(aggs.node_agg) +
-                    P.memory_bytes() + vb(kept_ptr) + vb(kept_col) + vb(Pf) + vb(Pq) + vb(Pscale) + vb(rchunks) + vb(dummy);
-    m += vb(Qf) + vb(agg_ptr) + vb(agg_nodes) + vb(strong_bits);
-    m += sizeof(double) * (f.size() + x.size() + res.size() + d.size());
+                    P.memory_bytes() + vb(kept_ptr) + vb(kept_col) + vb(Pq) + vb(Pscale) + vb(rchunks) + vb(dummy);
+    m += sizeof(double) * (f.size() + x.size() + d.size());
     if (direct == 1) m += sizeof(double) * llt.matrixLLT().size();
     if (direct == 2) m += sizeof(double) * (ldlt.matrixLDLT().size() + 2 * ldlt.rows());
     return m;

@@ -376,25 +376,19 @@ double preserve_modes(const BsrView<B, B>& A, const std::vector<double>& Dinv, c
 }
 
 template <int B>
-long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_blocks) {
+long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction) {
   const int n = P.rows();
   const int* pr = P.row_ptr().data();
   long long dropped = 0;
 #pragma omp parallel reduction(+ : dropped) if (n > parallel_rows)
   {
-    std::vector<double> norms, order;  // one row's squared block norms, buffers reused across the rows
+    std::vector<double> norms;  // one row's squared block norms, reused across the rows
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
       norms.clear();
       for (int k = pr[i]; k < pr[i + 1]; ++k) norms.push_back(P.block(k).squaredNorm());
       if (norms.empty()) continue;
-      double cut = fraction * fraction * *std::max_element(norms.begin(), norms.end());  // compared as squares
-      if (max_blocks > 0 && static_cast<int>(norms.size()) > max_blocks) {
-        // The max_blocks-th largest norm: blocks below it go as well (ties stay).
-        order.assign(norms.begin(), norms.end());
-        std::nth_element(order.begin(), order.begin() + (max_blocks - 1), order.end(), std::greater<>());
-        cut = std::max(cut, order[max_blocks - 1]);
-      }
+      const double cut = fraction * fraction * *std::max_element(norms.begin(), norms.end());  // compared as squares
       for (int k = pr[i]; k < pr[i + 1]; ++k)
         if (norms[k - pr[i]] < cut) {
           P.block(k).setZero();
@@ -416,7 +410,7 @@ long long truncate_prolongator(BlockMatrix<B, 6>& P, double fraction, int max_bl
     const NullSpace&, BlockMatrix<B, 6>&);                                                                                                   \
   template BlockMatrix<B, 6> smooth_prolongator<B>(const BsrView<B, B>&, const std::vector<double>&, const std::vector<std::uint8_t>*,       \
     const Aggregates&, double, const BlockMatrix<B, 6>&);                                                                                    \
-  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double, int);
+  template long long truncate_prolongator<B>(BlockMatrix<B, 6>&, double);
 WEFT_SA_INSTANTIATE(3)
 WEFT_SA_INSTANTIATE(6)
 #undef WEFT_SA_INSTANTIATE

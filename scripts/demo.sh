@@ -4,6 +4,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh weft
-# Keeping the SA aggregates between Newton iterations halves the demo's time (scene comment).
-./build/release/apps/weft run scenes/hanging_cloth.json --out out linear.preconditioner.reuse=aggregates "$@"
+./build/release/apps/weft run scenes/hanging_cloth.json --out out "$@"
 echo "demo: frames in out/ (open out/frames.pvd in ParaView), statistics in out/stats.jsonl, summary in out/summary.json"

@@ -106,7 +106,7 @@ TEST_SUITE("apps") {
     CHECK(lines.front().at("record") == "meta");
     CHECK(lines.front().at("stream_triad_gbs").get<double>() > 0);
     std::map<std::string, int> contacts, springs, pattern_changes;
-    std::map<std::string, double> sa_its, sa_mem, implicit_its, implicit_mem;  // per example/tessellation
+    std::map<std::string, double> sa_its, thesis_its;  // per example/tessellation
     for (size_t i = 1; i < lines.size(); ++i) {
       const json& j = lines[i];
       CAPTURE(j.dump());
@@ -129,12 +129,12 @@ TEST_SUITE("apps") {
         CHECK(j.at("mean_iterations").get<double>() >= 1);
       }
       const std::string key = ex + "/" + c.at("tessellation").get<std::string>();
-      if (j.at("solver") == "sa_ppcg")
-        sa_its[key] = j.at("mean_iterations").get<double>(), sa_mem[key] = j.at("memory_bytes").get<double>();
+      if (j.at("solver") == "sa_ppcg") sa_its[key] = j.at("mean_iterations").get<double>();
+      if (j.at("solver") == "sa_ppcg_thesis") thesis_its[key] = j.at("mean_iterations").get<double>();
       // The multigrid hierarchy of the first setup: the fine level is the sheet, each level
       // has the nodes the previous one aggregated into; one-level solvers record none.
       const json& h = j.at("hierarchy");
-      if (j.at("solver") == "sa_ppcg" || j.at("solver") == "sa_ppcg_flat" || j.at("solver") == "sa_ppcg_implicit") {
+      if (j.at("solver") == "sa_ppcg" || j.at("solver") == "sa_ppcg_thesis" || j.at("solver") == "sa_ppcg_large") {
         REQUIRE(h.size() == j.at("levels").get<size_t>());
         REQUIRE(h.size() >= 2);
         CHECK(h[0].at("nodes").get<int>() == c.at("vertices").get<int>());
@@ -151,8 +151,6 @@ TEST_SUITE("apps") {
       } else if (j.at("solver") == "diag_pcg") {
         CHECK(h.empty());
       }
-      if (j.at("solver") == "sa_ppcg_implicit")
-        implicit_its[key] = j.at("mean_iterations").get<double>(), implicit_mem[key] = j.at("memory_bytes").get<double>();
       contacts[key] = c.at("box_contacts_max").get<int>();
       springs[key] = c.at("springs_max").get<int>();
       pattern_changes[key] = c.at("pattern_changes").get<int>();
@@ -167,16 +165,13 @@ TEST_SUITE("apps") {
       CHECK(contacts["pinned/" + std::string(t)] == 0);
       CHECK(springs["dropHorizontal/" + std::string(t)] == 0);
     }
-    // The implicit P beside the default, on every example: the same iterations and about the
-    // stored fixed16 P's memory (test_memory.cpp: less than a single-precision P).
+    // At 961 vertices the default is the thesis' hierarchy kept between setups: the thesis
+    // preset's iterations on every example.
     REQUIRE(sa_its.size() == 10);
-    REQUIRE(implicit_its.size() == 10);
+    REQUIRE(thesis_its.size() == 10);
     for (const auto& [key, its] : sa_its) {
       CAPTURE(key);
-      CHECK(std::abs(implicit_its[key] - its) <= 1.0);
-      // The stored fixed16 P keeps no transpose index: at 961 vertices the implicit P now
-      // takes 0.2% less to 1.8% more (its residual vector, Phat and aggregates against P).
-      CHECK(std::abs(implicit_mem[key] - sa_mem[key]) <= 0.1 * sa_mem[key]);
+      CHECK(std::abs(thesis_its[key] - its) <= 1.0);
     }
     CHECK(slurp(dir / "bench_linear.md").find("Table 11.1") != std::string::npos);
     for (const char* s : {"## Multigrid hierarchies", "| pinned | regular | 961 | SA+PPCG | 1 |", "galerkin"})
@@ -297,6 +292,43 @@ TEST_SUITE("apps") {
 }
 
 TEST_SUITE("slow") {
+  // The default (preset auto) keeps the thesis' hierarchy below 160,000 vertices and takes the
+  // large settings from there: its iterations stay bounded where the thesis' grow, and the
+  // thesis preset still gives the counts of the Table 11.1 campaign
+  // (bench/results/table-11-1/A-regular/bench_linear.csv: 4.5, 5.0, 5.5 at m = 30, 60, 100).
+  TEST_CASE("bench: the default SA's iterations stay bounded from 10k to 161k vertices and the thesis preset reproduces Table 11.1's") {
+    const fs::path out = temp_dir("bench_linear_presets");
+    const auto by = by_solver_and_m(
+        bench_results("--examples pinned --tessellations regular --sizes 100 200 400 --steps 2 --solvers sa_ppcg sa_ppcg_thesis", out / "growth"));
+    const auto its = [&](const char* solver, int m) { return by.at(solver).at(m).at("mean_iterations").get<double>(); };
+    const auto p_per_row = [&](const char* solver, int m) {
+      return level_value(by.at(solver).at(m), 0, "p_blocks") / level_value(by.at(solver).at(m), 0, "nodes");
+    };
+    MESSAGE("default: " << its("sa_ppcg", 100) << " / " << its("sa_ppcg", 200) << " / " << its("sa_ppcg", 400)
+                        << " iterations at 10,201 / 40,401 / 160,801 vertices; thesis: " << its("sa_ppcg_thesis", 100) << " / "
+                        << its("sa_ppcg_thesis", 200) << " / " << its("sa_ppcg_thesis", 400));
+    // Below large_from the default is the thesis' hierarchy (kept between setups): its
+    // iterations, its prolongator; from it, the large preset's wider degree-2 prolongator.
+    for (const int m : {100, 200}) {
+      CAPTURE(m);
+      CHECK(std::abs(its("sa_ppcg", m) - its("sa_ppcg_thesis", m)) <= 0.5);
+      CHECK(p_per_row("sa_ppcg", m) == doctest::Approx(p_per_row("sa_ppcg_thesis", m)));
+    }
+    CHECK(p_per_row("sa_ppcg", 400) > 1.2 * p_per_row("sa_ppcg_thesis", 400));
+    CHECK(its("sa_ppcg_thesis", 400) >= 1.5 * its("sa_ppcg_thesis", 100));  // the growth the default avoids
+    CHECK(its("sa_ppcg", 400) <= 1.3 * its("sa_ppcg", 100));
+    CHECK(its("sa_ppcg", 200) <= 1.3 * its("sa_ppcg", 100));
+    // The campaign's counts, 8 steps per size.
+    const auto thesis =
+        by_solver_and_m(bench_results("--examples pinned --tessellations regular --sizes 30 60 100 --steps 8 --solvers sa_ppcg_thesis", out / "thesis"));
+    const std::map<int, double> recorded = {{30, 4.5}, {60, 5.0}, {100, 5.5}};
+    for (const auto& [m, expected] : recorded) {
+      CAPTURE(m);
+      CHECK(thesis.at("sa_ppcg_thesis").at(m).at("mean_iterations").get<double>() == doctest::Approx(expected).epsilon(0.05));
+    }
+    fs::remove_all(out);
+  }
+
   // The sheets' bending makes SA+PPCG's iterations grow with the resolution; two smoothing
   // steps of the first two prolongators keep them flat (I2-prolongator-degree.md).
   TEST_CASE("bench: with prolongator_degree 2 the SA+PPCG iterations stay flat from 10k to 160k vertices on pinned") {
@@ -305,7 +337,7 @@ TEST_SUITE("slow") {
     for (const int degree : {1, 2}) {
       const fs::path dir = out / fmt::format("d{}", degree);
       const Result r = run_weft(fmt::format("bench linear --examples pinned --tessellations regular --sizes 100 400 --steps 1 "
-                                            "--solvers sa_ppcg --sa prolongator_degree={} --out {}", degree, dir.string()));
+                                            "--solvers sa_ppcg_thesis --sa prolongator_degree={} --out {}", degree, dir.string()));
       CAPTURE(r.output);
       REQUIRE(r.code == 0);
       const auto lines = read_jsonl(dir / "bench_linear.jsonl");
@@ -335,7 +367,7 @@ TEST_SUITE("slow") {
     const fs::path out = temp_dir("bench_linear_p2w");
     std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
     const auto results =
-        bench_results("--examples re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_p2 sa_ppcg_p2w", out);
+        bench_results("--examples re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg_thesis sa_ppcg:prolongator_degree=2 sa_ppcg:prolongator_degree=2:cycle_gamma=2", out);
     REQUIRE(results.size() == 6);
     for (const json& j : results) {
       REQUIRE(j.at("failures").get<int>() == 0);
@@ -343,21 +375,21 @@ TEST_SUITE("slow") {
     }
     for (const auto& [solver, by_m] : its)
       MESSAGE(solver << ": " << by_m.at(100) << " iterations at 7,701 vertices, " << by_m.at(400) << " at 120,801");
-    CHECK(its["sa_ppcg"][400] >= 1.8 * its["sa_ppcg"][100]);
-    CHECK(its["sa_ppcg_p2w"][400] <= 1.3 * its["sa_ppcg_p2w"][100]);
-    CHECK(its["sa_ppcg_p2w"][400] < its["sa_ppcg_p2"][400]);
+    CHECK(its["sa_ppcg_thesis"][400] >= 1.8 * its["sa_ppcg_thesis"][100]);
+    CHECK(its["sa_ppcg:prolongator_degree=2:cycle_gamma=2"][400] <= 1.3 * its["sa_ppcg:prolongator_degree=2:cycle_gamma=2"][100]);
+    CHECK(its["sa_ppcg:prolongator_degree=2:cycle_gamma=2"][400] < its["sa_ppcg:prolongator_degree=2"][400]);
     fs::remove_all(out);
   }
 
   // The sheets' bending makes the thesis' hierarchy's iterations grow with the resolution
-  // (I2-prolongator-degree.md); sa_ppcg_flat's degree-2 prolongators on levels 0-1 and W-cycle
+  // (I2-prolongator-degree.md); sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2's degree-2 prolongators on levels 0-1 and W-cycle
   // on levels 1-2 keep them flat (M4-aggregation-theta.md).
-  TEST_CASE("bench: sa_ppcg_flat iterations stay flat from 10k to 160k vertices on pinned and re-entrant where the thesis' grow") {
+  TEST_CASE("bench: degree-2 prolongators with W-cycles on levels 1-2 keep the iterations flat from 10k to 160k vertices on pinned and re-entrant where the thesis' grow") {
     const fs::path out = temp_dir("bench_linear_flat");
     std::map<std::string, std::map<std::string, std::map<int, double>>> its;  // example -> solver -> m -> mean iterations
     std::map<std::string, double> p_per_row;                                  // solver -> fine P blocks per row (pinned, 10k)
     const auto results =
-        bench_results("--examples pinned re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_flat", out);
+        bench_results("--examples pinned re-entrant --tessellations regular --sizes 100 400 --steps 1 --solvers sa_ppcg_thesis sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2", out);
     REQUIRE(results.size() == 8);
     for (const json& j : results) {
       REQUIRE(j.at("failures").get<int>() == 0);
@@ -370,26 +402,26 @@ TEST_SUITE("slow") {
     for (const auto& [ex, by_solver] : its)
       for (const auto& [solver, by_m] : by_solver)
         MESSAGE(ex << " " << solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400");
-    CHECK(p_per_row["sa_ppcg_flat"] > p_per_row["sa_ppcg"]);  // the wider, degree-2 P
+    CHECK(p_per_row["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"] > p_per_row["sa_ppcg_thesis"]);  // the wider, degree-2 P
     for (const char* ex : {"pinned", "re-entrant"}) {
       CAPTURE(ex);
-      CHECK(its[ex]["sa_ppcg"][400] >= 1.8 * its[ex]["sa_ppcg"][100]);  // the growth sa_ppcg_flat removes
-      CHECK(its[ex]["sa_ppcg_flat"][400] <= 1.5 * its[ex]["sa_ppcg_flat"][100]);
-      CHECK(its[ex]["sa_ppcg_flat"][400] < its[ex]["sa_ppcg"][400]);
+      CHECK(its[ex]["sa_ppcg_thesis"][400] >= 1.8 * its[ex]["sa_ppcg_thesis"][100]);  // the growth sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2 removes
+      CHECK(its[ex]["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][400] <= 1.5 * its[ex]["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][100]);
+      CHECK(its[ex]["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][400] < its[ex]["sa_ppcg_thesis"][400]);
     }
     fs::remove_all(out);
   }
 
   // On the irregular sheets the smoothing filter loses the rotations that carry the bending,
-  // and sa_ppcg_flat's iterations grow there too; sa_ppcg_flat_pm restores the smoothed modes
+  // and sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2's iterations grow there too; sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true restores the smoothed modes
   // in P (preserve_modes) and keeps them flat (PM-preserve-modes.md: 7 -> 14 against 7 -> 10
   // from 10k to 160k on pinned).
-  TEST_CASE("bench: sa_ppcg_flat_pm iterations stay flat from 10k to 160k vertices on the irregular sheet where sa_ppcg_flat's grow") {
+  TEST_CASE("bench: preserve_modes keeps the degree-2 W-cycle hierarchy's iterations flat from 10k to 160k vertices on the irregular sheet where they grow without it") {
     const fs::path out = temp_dir("bench_linear_flat_pm");
     std::map<std::string, std::map<int, double>> its;  // solver -> m -> mean iterations
     std::map<std::string, double> p_blocks;            // solver -> fine P blocks (m = 100)
     const auto results =
-        bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg_flat sa_ppcg_flat_pm", out);
+        bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2 sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true", out);
     REQUIRE(results.size() == 4);
     for (const auto& [solver, by_m] : by_solver_and_m(results)) {
       for (const auto& [m, j] : by_m) its[solver][m] = j.at("mean_iterations").get<double>();
@@ -397,10 +429,10 @@ TEST_SUITE("slow") {
     }
     for (const auto& [solver, by_m] : its)
       MESSAGE(solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400");
-    CHECK(p_blocks["sa_ppcg_flat_pm"] == p_blocks["sa_ppcg_flat"]);  // the same pattern: the correction costs no memory
-    CHECK(its["sa_ppcg_flat"][400] >= 1.8 * its["sa_ppcg_flat"][100]);  // the growth the correction removes
-    CHECK(its["sa_ppcg_flat_pm"][400] <= 1.5 * its["sa_ppcg_flat_pm"][100]);
-    CHECK(its["sa_ppcg_flat_pm"][400] < its["sa_ppcg_flat"][400]);
+    CHECK(p_blocks["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"] == p_blocks["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"]);  // the same pattern: the correction costs no memory
+    CHECK(its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][400] >= 1.8 * its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][100]);  // the growth the correction removes
+    CHECK(its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][400] <= 1.5 * its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][100]);
+    CHECK(its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][400] < its["sa_ppcg:aggregation_theta=0.25:prolongator_degree=2:cycle_gamma=2:cycle_gamma_levels=2"][400]);
     fs::remove_all(out);
   }
 
@@ -409,11 +441,11 @@ TEST_SUITE("slow") {
   // preserve_modes keeps the rotations the filter loses, and the W-cycle on levels 1-2 makes
   // up for the coarser level 1 (LEAN-aggregation.md: 8 -> 12 against 7.5 -> 14.5 from 10k
   // to 160k on pinned, in 0.68x the default's memory).
-  TEST_CASE("bench: sa_ppcg_lean keeps the irregular sheet's iterations from growing like the default's in less memory") {
+  TEST_CASE("bench: aggregating at 0.25 with preserve_modes and W-cycles keeps the irregular sheet's iterations from growing like the thesis' in less memory") {
     const fs::path out = temp_dir("bench_linear_lean");
     std::map<std::string, std::map<int, double>> its, mem;  // solver -> m -> mean iterations, own bytes
     const auto results =
-        bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg sa_ppcg_lean", out);
+        bench_results("--examples pinned --tessellations irregular --sizes 100 400 --steps 1 --solvers sa_ppcg_thesis sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true", out);
     REQUIRE(results.size() == 4);
     for (const auto& [solver, by_m] : by_solver_and_m(results))
       for (const auto& [m, j] : by_m) {
@@ -423,12 +455,12 @@ TEST_SUITE("slow") {
     for (const auto& [solver, by_m] : its)
       MESSAGE(solver << ": " << by_m.at(100) << " iterations at m = 100, " << by_m.at(400) << " at m = 400; own memory "
                      << mem[solver][100] / 1e6 << " / " << mem[solver][400] / 1e6 << " MB");
-    CHECK(its["sa_ppcg"][400] >= 1.8 * its["sa_ppcg"][100]);  // the growth the lean setting removes
-    CHECK(its["sa_ppcg_lean"][400] <= 1.6 * its["sa_ppcg_lean"][100]);
-    CHECK(its["sa_ppcg_lean"][400] < its["sa_ppcg"][400]);
+    CHECK(its["sa_ppcg_thesis"][400] >= 1.8 * its["sa_ppcg_thesis"][100]);  // the growth the lean setting removes
+    CHECK(its["sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][400] <= 1.6 * its["sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][100]);
+    CHECK(its["sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][400] < its["sa_ppcg_thesis"][400]);
     for (const int m : {100, 400}) {
       CAPTURE(m);
-      CHECK(mem["sa_ppcg_lean"][m] < 0.8 * mem["sa_ppcg"][m]);
+      CHECK(mem["sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true"][m] < 0.8 * mem["sa_ppcg_thesis"][m]);
     }
     fs::remove_all(out);
   }
@@ -436,13 +468,13 @@ TEST_SUITE("slow") {
   // aggregates (5.5 blocks per row) and level 1 dense; truncating P's rows at 0.05 of their
   // largest block, with the rigid modes repaired, narrows both at the same iterations
   // (TRUNC-lean2t.md: 1.68x -> 1.51x Diag-PCG's memory at 26k, 26.6 -> 26.9 iterations).
-  TEST_CASE("bench: sa_ppcg_lean2t_sheets narrows dropVertical's degree-2 prolongator and level 1 at lean2_sheets' iterations") {
+  TEST_CASE("bench: prolongator truncation narrows dropVertical's degree-2 prolongator and level 1 at the same iterations") {
     const fs::path out = temp_dir("bench_linear_lean2t");
     const auto results = bench_results(
-        "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers sa_ppcg_lean2_sheets sa_ppcg_lean2t_sheets", out);
+        "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1 sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1:prolongator_truncation=0.05", out);
     REQUIRE(results.size() == 2);
     const std::map<std::string, json> by = by_solver(results);
-    const json &whole = by.at("sa_ppcg_lean2_sheets"), &cut = by.at("sa_ppcg_lean2t_sheets");
+    const json &whole = by.at("sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1"), &cut = by.at("sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1:prolongator_truncation=0.05");
     MESSAGE("lean2_sheets / lean2t_sheets: " << whole.at("mean_iterations").get<double>() << " / " << cut.at("mean_iterations").get<double>()
                                              << " iterations, fine P " << level_value(whole, 0, "p_blocks") << " / " << level_value(cut, 0, "p_blocks")
                                              << " blocks, level 1 " << level_value(whole, 1, "blocks") << " / " << level_value(cut, 1, "blocks")
@@ -459,15 +491,15 @@ TEST_SUITE("slow") {
   // The split leaves single-node pieces of the accordion's aggregates, each a full row of
   // level 1; split_merge 3 joins them to a neighbour of their sheet (MERGE.md: at 161k, 1.56x
   // -> 1.39x Diag-PCG's memory, matrix included, at 26.6 -> 27.1 iterations).
-  TEST_CASE("bench: sa_ppcg_lean2tm_sheets brings regular dropVertical within 1.5x Diag-PCG's memory where lean2t_sheets is above") {
+  TEST_CASE("bench: the large preset's split_merge brings regular dropVertical within 1.5x Diag-PCG's memory where it is above without") {
     const fs::path out = temp_dir("bench_linear_lean2tm");
     const auto results = bench_results(
-        "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers diag_pcg sa_ppcg_lean2t_sheets "
-        "sa_ppcg_lean2tm_sheets",
+        "--examples dropVertical --tessellations regular --sizes 100 --steps 2 --solvers diag_pcg sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1:prolongator_truncation=0.05 "
+        "sa_ppcg_large",
         out);
     REQUIRE(results.size() == 3);
     const std::map<std::string, json> by = by_solver(results);
-    const json &diag = by.at("diag_pcg"), &split = by.at("sa_ppcg_lean2t_sheets"), &merged = by.at("sa_ppcg_lean2tm_sheets");
+    const json &diag = by.at("diag_pcg"), &split = by.at("sa_ppcg:aggregation_theta=0.25:cycle_gamma=2:cycle_gamma_levels=2:preserve_modes=true:split_sheets=true:sheet_strength=true:split_bonded=0.01:prolongator_degree=2:prolongator_degree_levels=1:prolongator_truncation=0.05"), &merged = by.at("sa_ppcg_large");
     const auto ratio = [&](const json& j) {
       return j.at("memory_with_matrix_bytes").get<double>() / diag.at("memory_with_matrix_bytes").get<double>();
     };

@@ -17,6 +17,7 @@
 #include <omp.h>
 #endif
 
+#include "framework/params_json.hpp"
 #include "framework/union_find.hpp"
 #include "linear/prefilter.hpp"
 #include "linear/sa_amg.hpp"
@@ -858,7 +859,6 @@ TEST_CASE("sa: preserve_modes keeps the V-cycle SPD and cuts the PCG iterations 
   CHECK(rp.converged);
   CHECK(rk.converged);
   CHECK(rk.iterations < rp.iterations);
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.implicit_prolongator = true, .preserve_modes = true}), ConfigError);
 }
 
 TEST_CASE("sa: truncation drops the small blocks of each prolongator row and preserve_modes repairs the rigid modes") {
@@ -896,33 +896,6 @@ TEST_CASE("sa: truncation drops the small blocks of each prolongator row and pre
     CHECK(P.nnz() == nnz);
     CHECK((P.to_dense() * c.t.Kc - target).norm() <= 1e-12 * target.norm());
     c.check_special_rows_empty(P);
-
-    // A cap on the blocks per row keeps each row's largest blocks and leaves narrow rows alone.
-    const int cap = 3;
-    BlockMatrix<3, 6> Q = full;
-    const long long capped = sa::truncate_prolongator<3>(Q, 0.0, cap);
-    CHECK(capped == full.nnz() - Q.nnz());
-    int wide = 0;
-    for (int i = 0; i < c.n; ++i) {
-      const int width = full.row_ptr()[i + 1] - full.row_ptr()[i];
-      wide += width > cap;
-      std::vector<double> norms;
-      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) norms.push_back(full.block(k).norm());
-      std::sort(norms.rbegin(), norms.rend());
-      const double smallest_kept = width > cap ? norms[cap - 1] : 0.0;
-      int kept = 0;
-      for (int k = full.row_ptr()[i]; k < full.row_ptr()[i + 1]; ++k) {
-        if (full.block(k).norm() < smallest_kept) continue;
-        const int q = Q.row_ptr()[i] + kept++;
-        REQUIRE(q < Q.row_ptr()[i + 1]);
-        CHECK(Q.col()[q] == full.col()[k]);
-      }
-      CHECK(Q.row_ptr()[i + 1] - Q.row_ptr()[i] == kept);
-      CHECK(kept == std::min(width, cap));  // no ties among the norms here
-    }
-    REQUIRE(wide > c.n / 10);  // not vacuous: many rows are wider than the cap
-    sa::preserve_modes<3>(c.A, c.Dinv, c.ag, omega, 2, c.K, c.t.Kc, Q);
-    CHECK((Q.to_dense() * c.t.Kc - target).norm() <= 1e-12 * target.norm());
   }
 }
 
@@ -938,13 +911,6 @@ TEST_CASE("sa: prolongator truncation keeps the V-cycle SPD and shrinks P and th
   REQUIRE(cut.levels() >= 3);
   CHECK(cut.stats().levels[0].truncated > 0);
   checked_spd_map(cut, small.Ahat.rows());
-  prm.prolongator_truncation = 0;
-  prm.prolongator_max_blocks = 2;
-  SaAmg capped(prm);
-  REQUIRE(capped.setup(small.Ahat, sctx) == Status::success);
-  CHECK(capped.stats().levels[0].truncated > 0);
-  CHECK(capped.stats().levels[0].nnz_p <= 2LL * small.Ahat.block_rows());
-  checked_spd_map(capped, small.Ahat.rows());
 
   Prefiltered p = prefiltered_cloth(121, Tessellation::irregular, Pins::boundary);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
@@ -975,8 +941,6 @@ TEST_CASE("sa: prolongator truncation keeps the V-cycle SPD and shrinks P and th
   // Without the repair the dropped blocks lose the modes.
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 0.1}), ConfigError);
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_truncation = 1, .preserve_modes = true}), ConfigError);
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_max_blocks = 4}), ConfigError);
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_max_blocks = -1, .preserve_modes = true}), ConfigError);
 }
 
 TEST_CASE("sa: a truncated prolongator under reuse keeps its first pattern and the V-cycle SPD") {
@@ -1053,14 +1017,14 @@ TEST_CASE("sa: the degree-2 prolongator keeps the V-cycle symmetric positive def
     CHECK((2 * B2 - B).norm() <= 1e-10 * B.norm());  // B(2A) = B(A) / 2
   }
   CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 4}), ConfigError);
-  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.prolongator_degree = 2, .implicit_prolongator = true}), ConfigError);
 }
 
-TEST_CASE("sa: theta moves the smoothing filter between few couplings and unfiltered smoothing with aggregates fixed by aggregation_theta and keeps the V-cycle SPD") {
+TEST_CASE("sa: theta moves the smoothing filter between few couplings and all of them with aggregates fixed by aggregation_theta and keeps the V-cycle SPD") {
   // theta only sets the smoothing filter's threshold: the aggregates stay those of
   // aggregation_theta, P widens as theta falls, and with every coupling kept (no special node
-  // on the unpinned sheet) P is the unfiltered smoother's. theta = aggregation_theta is the
-  // thesis' filter (aggregation_theta = 0, the default, means theta).
+  // on the unpinned sheet) P is the unfiltered smoother's, built from the stages with no
+  // strong flags. theta = aggregation_theta is the thesis' filter (aggregation_theta = 0, the
+  // default, means theta).
   Prefiltered p = prefiltered_cloth(13, Tessellation::irregular, Pins::reentrant);
   SolveContext ctx{&p.sys.pins, &p.sys.x};
   const int N = p.Ahat.rows();
@@ -1092,15 +1056,27 @@ TEST_CASE("sa: theta moves the smoothing filter between few couplings and unfilt
 
   Prefiltered free = prefiltered_cloth(13, Tessellation::irregular, Pins::none);
   SolveContext fctx{&free.sys.pins, &free.sys.x};
-  SaAmg::Params all = base, unfiltered = base, thesis = base;
+  SaAmg::Params all = base, thesis = base;
   all.theta = 1e-12;
-  unfiltered.filtered_smoothing = false;
-  SaAmg a(all), u(unfiltered), t(thesis);
+  all.aggregate_order = AggregateOrder::natural;  // P's columns in the order of the stages below
+  SaAmg a(all), t(thesis);
   REQUIRE(a.setup(free.Ahat, fctx) == Status::success);
-  REQUIRE(u.setup(free.Ahat, fctx) == Status::success);
   REQUIRE(t.setup(free.Ahat, fctx) == Status::success);
   REQUIRE(a.stats().levels[0].special == 0);
-  const Eigen::MatrixXd Pa = a.prolongator(0), Pu = u.prolongator(0), Pt = t.prolongator(0);
+  const Eigen::MatrixXd Pa = a.prolongator(0), Pt = t.prolongator(0);
+  // The unfiltered P from the stages: the aggregates of the thesis' threshold, no flags.
+  const BsrView<3, 3> V = bsr_view(free.Ahat);
+  std::vector<double> mu, Dinv;
+  std::vector<std::uint8_t> strong, special;
+  sa::strength<3>(V, 0.48, SocMeasure::spectral, mu, strong);
+  sa::special_nodes<3>(V, mu, base.diagonal_dominance, strong, special);
+  const sa::Aggregates aggs = sa::aggregate<3>(V, strong, special);
+  REQUIRE(aggs.count == a.stats().levels[0].aggregates);
+  REQUIRE(invert_block_diagonal<3>(V, Dinv) == 0);
+  const sa::Tentative tent = sa::tentative_prolongator<3>(aggs, sa::rigid_body_modes(free.sys.x, nullptr), base.qr_tolerance);
+  BlockMatrix<3, 6> Pun = sa::prolongator_pattern<3>(V, nullptr, aggs);
+  sa::prolongator_values<3>(V, Dinv, nullptr, aggs, tent, 4.0 / (3.0 * a.stats().levels[0].lambda), Pun);
+  const Eigen::MatrixXd Pu = Pun.to_dense();
   CHECK((Pa - Pu).norm() <= 1e-12 * Pu.norm());
   CHECK((Pt - Pu).norm() > 1e-3 * Pu.norm());  // the thesis' filter differs from no filter here
   for (const double bad : {0.0, 1.0, -1.0}) {
@@ -1321,10 +1297,9 @@ TEST_CASE("sa: the W-cycle option needs no more PCG iterations than the V-cycle 
   }
 }
 
-TEST_CASE("sa: single-precision prolongators and coarse operators and block inverses keep the PCG iterations and take less memory") {
-  // The default stores the coarse operators and the smoother's block inverses in float; P is
-  // stored in float here (rounded before the Galerkin product; the default fixed16 has its
-  // own test); the all-double hierarchy is the reference.
+TEST_CASE("sa: fixed16 prolongators and single-precision coarse operators and block inverses keep the PCG iterations and take less memory") {
+  // The defaults store P in fixed16 (its own test below), the coarse operators and the
+  // smoother's block inverses in float; the all-double hierarchy is the reference.
   // Irregular cloth pinned at two sides and the re-entrant L.
   for (Pins pins : {Pins::two_sides, Pins::reentrant}) {
     CAPTURE(static_cast<int>(pins));
@@ -1333,22 +1308,15 @@ TEST_CASE("sa: single-precision prolongators and coarse operators and block inve
     SaAmg::Params dp = small_coarse(50), sp = small_coarse(50);
     dp.prolongator_storage = ValueStorage::double_precision;
     dp.single_coarse_operators = dp.single_block_inverses = false;
-    REQUIRE(sp.prolongator_storage == ValueStorage::fixed16);  // the defaults (fixed16: its own test)
-    sp.prolongator_storage = ValueStorage::single_precision;
+    REQUIRE(sp.prolongator_storage == ValueStorage::fixed16);
     REQUIRE(sp.single_coarse_operators);
     REQUIRE(sp.single_block_inverses);
     SaAmg d(dp), f(sp);
     REQUIRE(d.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(f.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(f.levels() >= 3);
-    // The stored P is the rounded one: float-representable entries, within float rounding of
-    // the double one.
-    const Eigen::MatrixXd Pd = d.prolongator(0), Pf = f.prolongator(0);
-    CHECK(Pf == Pf.cast<float>().cast<double>());
-    CHECK((Pf - Pd).norm() <= 1e-7 * Pd.norm());
-    CHECK((Pf - Pd).norm() > 0);  // the rounding did happen
     const PcgResult rd = pcg(p.Ahat, p.chat, d), rf = pcg(p.Ahat, p.chat, f);
-    MESSAGE("double: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; float: " << rf.iterations
+    MESSAGE("double: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; compact: " << rf.iterations
                        << " iterations, " << f.info().memory_bytes << " bytes");
     CHECK(rd.converged);
     CHECK(rf.converged);
@@ -1358,7 +1326,6 @@ TEST_CASE("sa: single-precision prolongators and coarse operators and block inve
     for (int which = 0; which < 3; ++which) {
       CAPTURE(which);
       SaAmg::Params q = small_coarse(50);
-      q.prolongator_storage = ValueStorage::single_precision;
       if (which == 0)
         q.prolongator_storage = ValueStorage::double_precision;
       else
@@ -1381,14 +1348,12 @@ TEST_CASE("sa: fixed16 prolongators are int16 multiples of one scale per coarse 
     CAPTURE(m);
     Prefiltered p = prefiltered_cloth(m, Tessellation::irregular, m == 13 ? Pins::reentrant : Pins::two_sides);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
-    SaAmg::Params dp = small_coarse(m == 13 ? 8 : 50), qp = dp, sp = dp;
+    SaAmg::Params dp = small_coarse(m == 13 ? 8 : 50), qp = dp;
     dp.prolongator_storage = ValueStorage::double_precision;
     qp.prolongator_storage = ValueStorage::fixed16;
-    sp.prolongator_storage = ValueStorage::single_precision;
-    SaAmg d(dp), q(qp), f(sp);
+    SaAmg d(dp), q(qp);
     REQUIRE(d.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(q.setup(p.Ahat, ctx) == Status::success);
-    REQUIRE(f.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(q.levels() >= 3);
     REQUIRE(q.levels() == d.levels());
     // Every level's P lies on its columns' grids; level 0 (the same fine matrix for both) is
@@ -1415,7 +1380,7 @@ TEST_CASE("sa: fixed16 prolongators are int16 multiples of one scale per coarse 
       if (l == 0) {
         REQUIRE(Pq.cols() == Pd.cols());
         CHECK(worst_error <= 0.5 + 1e-6);  // rounded to the nearest point of it
-        CHECK(worst_error > 1e-3);         // and the rounding happened: coarser than float's
+        CHECK(worst_error > 1e-3);         // and the rounding happened
       }
     }
     if (m == 13) {
@@ -1427,26 +1392,22 @@ TEST_CASE("sa: fixed16 prolongators are int16 multiples of one scale per coarse 
     } else {
       const PcgResult rd = pcg(p.Ahat, p.chat, d), rq = pcg(p.Ahat, p.chat, q);
       MESSAGE("double P: " << rd.iterations << " iterations, " << d.info().memory_bytes << " bytes; fixed16: "
-                           << rq.iterations << " iterations, " << q.info().memory_bytes << " bytes; float: "
-                           << f.info().memory_bytes << " bytes");
+                           << rq.iterations << " iterations, " << q.info().memory_bytes << " bytes");
       CHECK(rd.converged);
       CHECK(rq.converged);
       CHECK(std::abs(rq.iterations - rd.iterations) <= 1);
-      CHECK(q.info().memory_bytes < f.info().memory_bytes);
+      CHECK(q.info().memory_bytes < d.info().memory_bytes);
     }
   }
 }
 
 TEST_CASE("sa: a lent work vector gives the same cycle and the hierarchy owns no fine-size vector") {
   // PCG lends its idle A p vector to the fine level (apply(r, z, work)); without it the first
-  // apply allocates one. Both give the same z bit for bit, with the stored and the implicit P.
-  for (const bool implicit : {false, true}) {
-    CAPTURE(implicit);
+  // apply allocates one. Both give the same z bit for bit.
+  {
     Prefiltered p = prefiltered_cloth(31, Tessellation::irregular, Pins::two_sides);
     SolveContext ctx{&p.sys.pins, &p.sys.x};
-    SaAmg::Params prm = small_coarse(20);
-    prm.implicit_prolongator = implicit;
-    SaAmg sa(prm);
+    SaAmg sa(small_coarse(20));
     REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
     REQUIRE(sa.levels() >= 3);
     const std::size_t owned = sa.info().memory_bytes;
@@ -1771,63 +1732,6 @@ TEST_CASE("sa: RCM-numbered aggregates keep the V-cycle SPD and the PCG iteratio
   }
 }
 
-TEST_CASE("sa: the implicit prolongator is the stored one applied from A") {
-  // P = Z (I - omega D^-1 A_f) Phat applied from A (through the vertex filters, or from a
-  // stored Ahat), with and without filtered smoothing: the same P up to Phat's float rounding,
-  // a V-cycle as symmetric and positive definite as the stored one's, the same iterations,
-  // less memory.
-  for (const bool on_the_fly : {false, true})
-    for (const bool filtered : {true, false}) {
-      CAPTURE(on_the_fly);
-      CAPTURE(filtered);
-      for (const int m : {13, 61}) {
-        CAPTURE(m);
-        Prefiltered p = prefiltered_cloth(m, Tessellation::irregular, m == 13 ? Pins::reentrant : Pins::two_sides);
-        SolveContext ctx{&p.sys.pins, &p.sys.x};
-        OperatorFilter F;
-        F.build(p.sys.A, p.sys.pins);
-        const BlockCsr& A = on_the_fly ? p.sys.A : p.Ahat;
-        const VertexFilterView view = on_the_fly ? F.view() : VertexFilterView{};
-        SaAmg::Params ep = small_coarse(m == 13 ? 8 : 50);
-        ep.filtered_smoothing = filtered;
-        ep.prolongator_storage = ValueStorage::double_precision;  // the reference for the implicit one
-        SaAmg::Params ip = ep;
-        ip.implicit_prolongator = true;
-        SaAmg e(ep), im(ip);
-        REQUIRE(e.setup(A, ctx, view) == Status::success);
-        REQUIRE(im.setup(A, ctx, view) == Status::success);
-        REQUIRE(im.levels() >= 3);
-        REQUIRE(im.levels() == e.levels());
-        if (m == 13) {
-          const Eigen::MatrixXd Pe = e.prolongator(0), Pi = im.prolongator(0);
-          CHECK((Pi - Pe).norm() <= 1e-6 * Pe.norm());
-          const int special_rows = static_cast<int>((Pe.rowwise().norm().array() == 0).count());
-          CHECK(static_cast<int>((Pi.rowwise().norm().array() == 0).count()) == special_rows);
-          const Eigen::MatrixXd Be = assemble_preconditioner(e, A.rows()), Bi = assemble_preconditioner(im, A.rows());
-          CHECK((Bi - Bi.transpose()).norm() <= 1e-12 * Bi.norm());
-          CHECK(min_symmetric_eigenvalue(Bi) > 0);
-          CHECK((Bi - Be).norm() <= 1e-5 * Be.norm());
-        } else {
-          const PcgResult re = pcg(p.Ahat, p.chat, e), ri = pcg(p.Ahat, p.chat, im);
-          MESSAGE("stored P: " << re.iterations << " iterations, " << e.info().memory_bytes << " bytes; implicit: "
-                               << ri.iterations << " iterations, " << im.info().memory_bytes << " bytes");
-          CHECK(re.converged);
-          CHECK(ri.converged);
-          CHECK(std::abs(ri.iterations - re.iterations) <= 1);
-          CHECK(im.info().memory_bytes < e.info().memory_bytes);
-          // Reused aggregates: the second setup forms P again for its Galerkin product.
-          SaAmg::Params rp = ip;
-          rp.reuse = SaReuse::aggregates;
-          SaAmg r(rp);
-          REQUIRE(r.setup(A, ctx, view) == Status::success);
-          REQUIRE(r.setup(A, ctx, view) == Status::success);
-          CHECK(r.stats().reused);
-          CHECK(pcg(p.Ahat, p.chat, r).iterations == ri.iterations);
-        }
-      }
-    }
-}
-
 TEST_CASE("sa: setup without positions is invalid input") {
   BlockCsr A = support::block_laplacian(5, 0.1);
   SaAmg sa({});
@@ -1999,3 +1903,80 @@ TEST_CASE("sa: setup and apply do not depend on the thread count") {
 
 }  // TEST_SUITE("linear")
 
+
+TEST_CASE("sa: a preset is read before the keys beside it and names a bad value") {
+  const auto read = [](const std::string& text) { return read_params<SaAmg::Params>(Json::parse(text), "p", "invalid:"); };
+  const SaAmg::Params thesis = read(R"({"preset": "thesis"})");
+  CHECK(thesis.preset == SaPreset::thesis);
+  CHECK(thesis.reuse == SaReuse::none);
+  CHECK(thesis.prolongator_degree == 1);
+  // Keys beside the preset change it, whatever their order in the object.
+  for (const char* text : {R"({"preset": "large", "cycle_gamma": 1})", R"({"cycle_gamma": 1, "preset": "large"})"}) {
+    CAPTURE(text);
+    const SaAmg::Params large = read(text);
+    CHECK(large.preset == SaPreset::large);
+    CHECK(large.cycle_gamma == 1);
+    CHECK(large.prolongator_degree == 2);
+    CHECK(large.split_sheets);
+    CHECK(large.prolongator_truncation == 0.05);
+  }
+  // No preset key: the member defaults, which are auto's.
+  const SaAmg::Params none = read(R"({"theta": 0.3})");
+  CHECK(none.preset == SaPreset::automatic);
+  CHECK(none.reuse == SaReuse::aggregates);
+  CHECK(none.theta == 0.3);
+  try {
+    read(R"({"preset": "fast"})");
+    FAIL("an unknown preset was accepted");
+  } catch (const ConfigError& e) {
+    CHECK(std::string(e.what()).find("p.preset = \"fast\" is not a valid choice: valid are auto, thesis, large") != std::string::npos);
+  }
+}
+
+TEST_CASE("sa: preset auto takes the large settings from large_from rows and keeps the keys given") {
+  // The same sheet on both sides of the threshold: below it, the thesis' hierarchy; from it,
+  // the large preset's (the same prolongator), with a given key kept even where it equals
+  // auto's default.
+  Prefiltered p = prefiltered_cloth(31, Tessellation::irregular, Pins::two_sides);
+  SolveContext ctx{&p.sys.pins, &p.sys.x};
+  const int rows = p.Ahat.block_rows();
+  const auto read = [](const std::string& text) { return read_params<SaAmg::Params>(Json::parse(text), "p", "invalid:"); };
+  const SaAmg::Params below = read(fmt::format(R"({{"coarse_size": 20, "large_from": {}}})", rows + 1));
+  const SaAmg::Params from = read(fmt::format(R"({{"coarse_size": 20, "large_from": {}}})", rows));
+  const SaAmg::Params given = read(fmt::format(R"({{"coarse_size": 20, "large_from": {}, "cycle_gamma": 1}})", rows));
+  CHECK(below.resolved(rows).preset == SaPreset::automatic);
+  const SaAmg::Params r = from.resolved(rows);
+  CHECK(r.preset == SaPreset::large);
+  CHECK(r.coarse_size == 20);  // differs from auto's: kept
+  CHECK(r.cycle_gamma == 2);
+  CHECK(given.resolved(rows).cycle_gamma == 1);  // equal to auto's, but given
+  // The same without a scene: settings that differ from auto's hold.
+  SaAmg::Params code = SaAmg::Params{.large_from = 1, .theta = 0.3};
+  CHECK(code.resolved(5).theta == 0.3);
+  CHECK(code.resolved(5).split_sheets);
+
+  SaAmg::Params thesis = SaAmg::Params::of(SaPreset::thesis), large = SaAmg::Params::of(SaPreset::large);
+  thesis.coarse_size = large.coarse_size = 20;
+  SaAmg a_below(below), a_from(from), a_thesis(thesis), a_large(large);
+  for (SaAmg* sa : {&a_below, &a_from, &a_thesis, &a_large}) REQUIRE(sa->setup(p.Ahat, ctx) == Status::success);
+  REQUIRE(a_from.levels() >= 3);
+  CHECK(a_below.prolongator(0) == a_thesis.prolongator(0));
+  CHECK(a_from.prolongator(0) == a_large.prolongator(0));
+  CHECK(a_from.prolongator(0).cols() != a_below.prolongator(0).cols());  // not vacuous: the two hierarchies differ
+  checked_spd_map(a_from, p.Ahat.rows());
+}
+
+TEST_CASE("sa: preset auto validates the large settings with the keys given before any setup") {
+  // split_sheets = false beside auto leaves large's split_merge without its split.
+  try {
+    SaAmg sa(SaAmg::Params{.split_sheets = false, .given = {"split_sheets"}});
+    FAIL("the large settings were not validated");
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    CAPTURE(what);
+    CHECK(what.find("from large_from = 160000 fine rows") != std::string::npos);
+    CHECK(what.find("split_merge") != std::string::npos);
+  }
+  CHECK_NOTHROW(SaAmg(SaAmg::Params{.preset = SaPreset::thesis, .split_sheets = false, .given = {"split_sheets"}}));
+  CHECK_THROWS_AS(SaAmg(SaAmg::Params{.large_from = 0}), ConfigError);
+}
