@@ -8,12 +8,15 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <optional>
 #include <regex>
 
@@ -30,6 +33,52 @@
 
 namespace weft::app {
 namespace {
+
+/// This process's place in an MPI job, from its launcher's environment (Open MPI, MPICH's
+/// Hydra, PMI): rank 0 of 1 without mpirun. weft itself makes no MPI call: the linear
+/// solver initialises MPI when it distributes the Newton systems (PetscGamg).
+struct MpiLaunch {
+  int rank = 0, size = 1;
+};
+MpiLaunch mpi_launch() {
+  const auto first = [](std::initializer_list<const char*> names) {
+    for (const char* n : names)
+      if (const char* v = std::getenv(n)) return std::atoi(v);
+    return -1;
+  };
+  MpiLaunch m;
+  const int size = first({"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"});
+  const int rank = first({"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"});
+  if (size > 1 && rank >= 0 && rank < size) m = {rank, size};
+  return m;
+}
+
+/// Under mpirun every rank runs the same simulation on the same data and the Newton systems
+/// are solved by all of them together, so only a linear solver that distributes its solves
+/// may run there (every other one would repeat the whole run on each rank).
+void require_distributed_solver(const AnySimulator& sim, const MpiLaunch& mpi) {
+  if (mpi.size <= 1) return;
+  std::string_view linear = "?";
+  for (const ComboInfo& c : combos())
+    if (c.key == sim.combo()) linear = c.linear;
+  if (linear != "petsc_gamg")
+    throw ConfigError(fmt::format("mpirun with {} ranks: combo {} solves its Newton systems with {}, on one process; under mpirun the "
+                                  "systems are distributed by linear.solver = petsc_gamg (a build with -DWEFT_WITH_PETSC=ON), the "
+                                  "only solver that runs across ranks",
+                                  mpi.size, sim.combo(), linear));
+}
+
+/// The output directory of a rank other than 0, which writes nothing the user sees: a
+/// private temporary directory, removed when the run ends.
+struct PrivateOutput {
+  std::filesystem::path path;
+  explicit PrivateOutput(int rank)
+      : path(std::filesystem::temp_directory_path() / fmt::format("weft_rank{}_{}", rank, getpid())) {}
+  ~PrivateOutput() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
 
 extern "C" void on_signal(int s) { request_stop(s); }
 
@@ -320,8 +369,18 @@ class Progress {
 
 }  // namespace
 
-int run_scene(const RunOptions& opt) {
+int run_scene(const RunOptions& given) {
   const auto wall_start = std::chrono::steady_clock::now();
+  // Under mpirun, rank 0 writes the outputs and the log; the others run silently.
+  const MpiLaunch mpi = mpi_launch();
+  RunOptions opt = given;
+  std::optional<PrivateOutput> private_out;
+  if (mpi.rank > 0) {
+    private_out.emplace(mpi.rank);
+    opt.out_dir = private_out->path.string();
+    opt.quiet = true;
+    spdlog::set_level(spdlog::level::off);
+  }
   // 1. Validate everything before touching the output directory: the scene, the
   //    checkpoint options, and the checkpoint to resume from.
   std::unique_ptr<AnySimulator> sim;
@@ -329,6 +388,7 @@ int run_scene(const RunOptions& opt) {
   long long step0 = 0;
   try {
     sim = make_simulator(load_scene(opt.scene, opt.overrides));
+    require_distributed_solver(*sim, mpi);
     if (opt.checkpoint_every < 0)
       throw ConfigError(fmt::format("--checkpoint-every {}: must be a number of frames >= 1 (0: none)", opt.checkpoint_every));
     if ((opt.checkpoint_every > 0 || !opt.resume.empty()) && !sim->checkpoint_unsupported().empty())
@@ -356,6 +416,8 @@ int run_scene(const RunOptions& opt) {
 #ifdef _OPENMP
   // Threads by size: a small scene's loops are too short to pay for waking a second thread.
   if (!opt.threads_given && sim->state().num_vertices() < parallel_min_vertices) omp_set_num_threads(1);
+  // The ranks of one machine share its cores.
+  else if (!opt.threads_given && mpi.size > 1) omp_set_num_threads(std::max(1, omp_get_num_procs() / mpi.size));
 #endif
   const auto& time = scene.spec.time;
   const int spf = time.steps_per_frame(), frames = time.num_frames();
@@ -619,6 +681,7 @@ int run_scene(const RunOptions& opt) {
                {"final_energy", energies},
                {"lapack", linear::lapack_library()},
                {"build", build_commit()},
+               {"ranks", mpi.size},
                {"threads",
 #ifdef _OPENMP
                 omp_get_max_threads()
