@@ -164,6 +164,17 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
 #ifdef WEFT_WITH_PETSC
   list.push_back({"petsc_gamg", "PETSc GAMG", "PETSc CG + GAMG (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
                   false, maker<linear::PetscGamg>(krylov<linear::PetscGamg>(s))});
+  // The stronger peers through PETSc, with the same CG and stopping rule.
+  auto peer = [&](linear::PetscAmg amg, std::string options) {
+    linear::PetscGamg::Params p = krylov<linear::PetscGamg>(s);
+    p.amg = amg;
+    p.options = std::move(options);
+    return maker<linear::PetscGamg>(p);
+  };
+  list.push_back({"petsc_boomeramg", "hypre BoomerAMG", "PETSc CG + hypre BoomerAMG (classical AMG) on the prefiltered matrix", false,
+                  peer(linear::PetscAmg::boomeramg, "")});
+  list.push_back({"petsc_ml", "Trilinos ML", "PETSc CG + Trilinos ML (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
+                  false, peer(linear::PetscAmg::ml, "")});
 #endif
   return list;
 }

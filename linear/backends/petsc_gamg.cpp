@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <string>
@@ -51,6 +52,36 @@ bool petsc_alive() {
   PetscBool finalized = PETSC_FALSE;
   PetscFinalized(&finalized);
   return !finalized;
+}
+
+/// "-a 1 -b" -> "-weft_a 1 -weft_b": a solver's options under the prefix of its KSP.
+std::string prefixed_options(const std::string& options) {
+  std::string out;
+  std::size_t i = 0;
+  while (i < options.size()) {
+    const std::size_t start = options.find_first_not_of(" \t", i);
+    if (start == std::string::npos) break;
+    const std::size_t end = std::min(options.find_first_of(" \t", start), options.size());
+    const std::string token = options.substr(start, end - start);
+    out += (out.empty() ? "" : " ") + (token.size() > 1 && token[0] == '-' && !std::isdigit(static_cast<unsigned char>(token[1])) &&
+                                               token[1] != '.'
+                                           ? "-weft_" + token.substr(1)
+                                           : token);
+    i = end;
+  }
+  return out;
+}
+
+/// The option names ("-weft_a", ...) of an options string.
+std::vector<std::string> option_names(const std::string& options) {
+  std::vector<std::string> names;
+  std::size_t i = 0;
+  while ((i = options.find("-weft_", i)) != std::string::npos) {
+    const std::size_t end = std::min(options.find_first_of(" \t", i), options.size());
+    names.push_back(options.substr(i, end - i));
+    i = end;
+  }
+  return names;
 }
 
 /// Collects the first PETSc error of a sequence of calls.
@@ -147,12 +178,23 @@ Status PetscGamg::analyze_pattern(const BlockCsr& A) {
     WEFT_PETSC(ok, KSPSetResidualHistory(s.ksp, nullptr, PETSC_DECIDE, PETSC_TRUE));
     PC pc = nullptr;
     WEFT_PETSC(ok, KSPGetPC(s.ksp, &pc));
-    WEFT_PETSC(ok, PCSetType(pc, PCGAMG));
-    WEFT_PETSC(ok, PCGAMGSetType(pc, PCGAMGAGG));  // smoothed aggregation
-    WEFT_PETSC(ok, PCGAMGSetNSmooths(pc, 1));
-    WEFT_PETSC(ok, PCGAMGSetAggressiveLevels(pc, prm_.aggressive_levels));
-    WEFT_PETSC(ok, PCGAMGSetCoarseEqLim(pc, prm_.coarse_equations));
-    WEFT_PETSC(ok, PCGAMGSetReuseInterpolation(pc, prm_.reuse_interpolation ? PETSC_TRUE : PETSC_FALSE));
+    switch (prm_.amg) {
+      case PetscAmg::gamg:
+        WEFT_PETSC(ok, PCSetType(pc, PCGAMG));
+        WEFT_PETSC(ok, PCGAMGSetType(pc, PCGAMGAGG));  // smoothed aggregation
+        WEFT_PETSC(ok, PCGAMGSetNSmooths(pc, prm_.gamg_smooths));
+        WEFT_PETSC(ok, PCGAMGSetAggressiveLevels(pc, prm_.aggressive_levels));
+        WEFT_PETSC(ok, PCGAMGSetCoarseEqLim(pc, prm_.coarse_equations));
+        WEFT_PETSC(ok, PCGAMGSetReuseInterpolation(pc, prm_.reuse_interpolation ? PETSC_TRUE : PETSC_FALSE));
+        break;
+      case PetscAmg::boomeramg:
+        WEFT_PETSC(ok, PCSetType(pc, PCHYPRE));
+        WEFT_PETSC(ok, PCHYPRESetType(pc, "boomeramg"));
+        break;
+      case PetscAmg::ml:
+        WEFT_PETSC(ok, PCSetType(pc, PCML));
+        break;
+    }
   }
   setup_seconds_ = t;
   s.analyzed = static_cast<bool>(ok);
@@ -280,9 +322,18 @@ Status PetscGamg::factorize(const BlockCsr& A) {
     PetscBool given = PETSC_FALSE;
     WEFT_PETSC(ok, KSPGetPC(s.ksp, &pc));
     WEFT_PETSC(ok, KSPSetOperators(s.ksp, s.A, s.A));
-    WEFT_PETSC(ok, KSPSetFromOptions(s.ksp));  // PETSC_OPTIONS="-weft_..." overrides
-    WEFT_PETSC(ok, PetscOptionsHasName(nullptr, "weft_", "-pc_gamg_threshold", &given));
-    if (!given) WEFT_PETSC(ok, PCGAMGSetThreshold(pc, th, prm_.threshold >= 0 ? 1 : 2));
+    // This solver's own options, then PETSC_OPTIONS="-weft_..." on top (read by KSPSetFromOptions).
+    if (prm_.amg == PetscAmg::ml) WEFT_PETSC(ok, PetscOptionsSetValue(nullptr, "-weft_pc_ml_nullspace", "user"));
+    WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, prefixed_options(prm_.options).c_str()));
+    if (const char* env = std::getenv("PETSC_OPTIONS")) WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, env));
+    WEFT_PETSC(ok, KSPSetFromOptions(s.ksp));
+    if (prm_.amg == PetscAmg::gamg) {
+      WEFT_PETSC(ok, PetscOptionsHasName(nullptr, "weft_", "-pc_gamg_threshold", &given));
+      if (!given) WEFT_PETSC(ok, PCGAMGSetThreshold(pc, th, prm_.threshold >= 0 ? 1 : 2));
+    }
+    // Taken out again: the next solver in this process reads only its own.
+    for (const std::string& name : option_names(prefixed_options(prm_.options))) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, name.c_str()));
+    if (const char* env = std::getenv("PETSC_OPTIONS")) WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, env));
     WEFT_PETSC(ok, KSPSetUp(s.ksp));           // PCSetUp: the GAMG hierarchy
   }
   setup_seconds_ += assembly_seconds_ + pc_setup_seconds_ + prefilter_.take_seconds();
@@ -343,11 +394,13 @@ LinearReport PetscGamg::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     r.convergence_rate = std::pow(r.residual_history.back(), 1.0 / r.iterations);
   PC pc = nullptr;
   KSPGetPC(s.ksp, &pc);
-  PetscInt levels = 0;
-  PCMGGetLevels(pc, &levels);
-  r.levels = static_cast<int>(levels);
-  PetscReal grid_complexity = 0, op_complexity = 0;
-  if (PCMGGetGridComplexity(pc, &grid_complexity, &op_complexity) == 0) r.operator_complexity = op_complexity;
+  if (prm_.amg != PetscAmg::boomeramg) {  // GAMG and ML are PCMG; hypre keeps its hierarchy to itself
+    PetscInt levels = 0;
+    PCMGGetLevels(pc, &levels);
+    r.levels = static_cast<int>(levels);
+    PetscReal grid_complexity = 0, op_complexity = 0;
+    if (PCMGGetGridComplexity(pc, &grid_complexity, &op_complexity) == 0) r.operator_complexity = op_complexity;
+  }
   if (reason > 0) {
     r.status = Status::success;
   } else if (reason == KSP_DIVERGED_ITS) {

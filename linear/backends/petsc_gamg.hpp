@@ -1,8 +1,9 @@
 #pragma once
 /// \file petsc_gamg.hpp
 /// `PetscGamg`: PETSc's CG preconditioned by PCGAMG smoothed aggregation, the distributed
-/// baseline of methods/multigrid §13 ("Distributed back end (PETSc)") and §14. Optional: compiled only
-/// with -DWEFT_WITH_PETSC=ON.
+/// baseline of methods/multigrid §13 ("Distributed back end (PETSc)") and §14, or (`amg`) by
+/// hypre's BoomerAMG or Trilinos' ML through PETSc, the peers `weft bench linear` compares.
+/// Optional: compiled only with -DWEFT_WITH_PETSC=ON.
 ///
 /// - The system is prefiltered first (linear/prefilter.hpp), so GAMG sees the same SPD
 ///   Ahat = S A S + Sigma (I - S) as PPCG, stored as an MPI matrix with block size 3. It is
@@ -30,9 +31,16 @@
 /// inserts only those into the MPI matrix; the solution is gathered to every rank.
 /// PETSc (and MPI, if nobody has) is initialised on first use and finalised at exit, so the
 /// class also works in a plain single-process run without mpirun. PETSC_OPTIONS with the
-/// prefix "weft_" (e.g. "-weft_ksp_view") reaches the solver for ablations.
+/// prefix "weft_" (e.g. "-weft_ksp_view") reaches the solver for ablations; `options` sets
+/// PETSc options of this solver (written without the prefix) before each setup.
+///
+/// The peers: BoomerAMG (PCHYPRE) is classical AMG on the scalar matrix, or nodal with
+/// `-pc_hypre_boomeramg_nodal_coarsen`; it takes the rigid modes as interpolation vectors
+/// with `-pc_hypre_boomeramg_vec_interp_variant`. ML (PCML) is smoothed aggregation with the
+/// rigid modes as its near null space (`-pc_ml_nullspace user`, set here).
 #include <Eigen/Core>
 
+#include <array>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -44,6 +52,10 @@
 #include "linear/prefilter.hpp"
 
 namespace weft::linear {
+
+/// The AMG preconditioner of PETSc's CG.
+enum class PetscAmg { gamg, boomeramg, ml };
+inline constexpr std::array<std::string_view, 3> petsc_amg_names = {"gamg", "boomeramg", "ml"};
 
 class PetscGamg {
  public:
@@ -62,8 +74,12 @@ class PetscGamg {
     bool reuse_interpolation = false;  ///< keep GAMG's prolongators across factorize calls (thesis: rebuild)
     bool single_process = false;  ///< solve on this process alone (PETSC_COMM_SELF), even under mpirun
     bool check_residual = true;   ///< report the true relative residual (one product with Ahat)
+    PetscAmg amg = PetscAmg::gamg;  ///< the preconditioner (theta, threshold, aggressive_levels, coarse_equations: GAMG's)
+    int gamg_smooths = 1;         ///< GAMG's prolongator smoothing steps (-pc_gamg_agg_nsmooths)
+    std::string options;          ///< PETSc options of this solver, e.g. "-pc_hypre_boomeramg_strong_threshold 0.5"
     template <class V>
     void visit(V& v) {
+      v.choice("amg", amg, petsc_amg_names, "the preconditioner: PETSc GAMG, hypre BoomerAMG or Trilinos ML");
       v.field("tolerance", tolerance, {Unit::none, Range::open(0, 1), "relative tolerance in the preconditioner's norm"});
       v.field("max_iterations", max_iterations, {Unit::none, Range::ge(1), "CG iteration limit"});
       v.field("theta", theta, {Unit::none, Range::closed_open(0, 1), "thesis strength threshold (row-relative)"});
@@ -73,6 +89,8 @@ class PetscGamg {
       v.field("reuse_interpolation", reuse_interpolation, {Unit::none, Range::any(), "reuse GAMG prolongators across factorize"});
       v.field("single_process", single_process, {Unit::none, Range::any(), "solve on PETSC_COMM_SELF"});
       v.field("check_residual", check_residual, {Unit::none, Range::any(), "report the true relative residual of each solve"});
+      v.field("gamg_smooths", gamg_smooths, {Unit::none, Range::closed(0, 4), "GAMG prolongator smoothing steps"});
+      v.field("options", options, {Unit::none, Range::any(), "PETSc options of this solver (without the weft_ prefix), set before each setup"});
     }
   };
 

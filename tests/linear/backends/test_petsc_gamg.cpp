@@ -8,6 +8,21 @@
 using namespace weft;
 using support::Pins;
 
+namespace {
+
+/// One solve of a cloth system by `solver`, required to succeed.
+LinearReport solved(linear::PetscGamg& solver, const support::ClothSystem& sys, Eigen::VectorXd& x) {
+  solver.set_context({&sys.pins, &sys.x});
+  REQUIRE(solver.analyze_pattern(sys.A) == Status::success);
+  REQUIRE(solver.factorize(sys.A) == Status::success);
+  const LinearReport r = solver.solve(sys.b, x);
+  CAPTURE(r.message);
+  REQUIRE(r.status == Status::success);
+  return r;
+}
+
+}  // namespace
+
 TEST_SUITE("backends") {
   TEST_CASE("petsc_gamg: pinned cloth systems converge to the natural-norm tolerance") {
     for (auto [m, t, pins] : {std::tuple{25, Tessellation::regular, Pins::boundary},
@@ -16,14 +31,9 @@ TEST_SUITE("backends") {
       CAPTURE(m);
       CAPTURE(static_cast<int>(pins));
       const auto sys = support::cloth_system(m, t, pins);
-      linear::PetscGamg solver({});
-      solver.set_context({&sys.pins, &sys.x});
-      REQUIRE(solver.analyze_pattern(sys.A) == Status::success);
-      REQUIRE(solver.factorize(sys.A) == Status::success);
       Eigen::VectorXd x;
-      const LinearReport r = solver.solve(sys.b, x);
-      CAPTURE(r.message);
-      REQUIRE(r.status == Status::success);
+      linear::PetscGamg solver({});
+      const LinearReport r = solved(solver, sys, x);
       CHECK(r.iterations >= 1);
       CHECK(r.iterations <= 60);
       REQUIRE(r.residual_history.size() == static_cast<size_t>(r.iterations) + 1);
@@ -57,6 +67,33 @@ TEST_SUITE("backends") {
       CHECK((x - ref).norm() <= 1e-4 * ref.norm());
       CHECK(r.relative_residual <= 1e-5);
     }
+  }
+
+  TEST_CASE("petsc peers: BoomerAMG and ML match a dense KKT solve and take their options") {
+    // The peers of weft bench linear, with GAMG's CG and stopping rule: each reaches the
+    // direct solution, and a solver's options reach its preconditioner (a stricter BoomerAMG
+    // strength threshold changes the hierarchy and so the iteration count) without leaking
+    // into the next solver built in the process.
+    const auto sys = support::cloth_system(17, Tessellation::irregular, Pins::two_sides);
+    const Eigen::VectorXd ref = support::dense_kkt_solve(sys.A, sys.b, sys.pins);
+    const auto solve = [&](const linear::PetscGamg::Params& prm) {
+      Eigen::VectorXd x;
+      linear::PetscGamg solver(prm);
+      const LinearReport r = solved(solver, sys, x);
+      CHECK((x - ref).norm() <= 1e-4 * ref.norm());
+      CHECK(r.constraint_violation <= 1e-14);
+      return r;
+    };
+    const LinearReport ml = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::ml});
+    CHECK(ml.levels >= 2);
+    const LinearReport boomer = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg});
+    const LinearReport strict =
+        solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg, .options = "-pc_hypre_boomeramg_strong_threshold 0.9"});
+    const LinearReport again = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg});
+    MESSAGE("iterations to 1e-8: ML " << ml.iterations << ", BoomerAMG " << boomer.iterations << ", strong threshold 0.9 "
+                                      << strict.iterations << ", default again " << again.iterations);
+    CHECK(strict.iterations != boomer.iterations);
+    CHECK(again.iterations == boomer.iterations);
   }
 
   TEST_CASE("petsc_gamg: new values on the same pattern - rebuilt or reused interpolation") {
