@@ -162,19 +162,29 @@ std::vector<SolverEntry> available_solvers(const SolverSettings& s) {
   list.push_back({"sa_mpcg", "SA+MPCG", "BW98 modified PCG, smoothed aggregation built from the unfiltered A (ablation)", false,
                   maker<SaMpcg>(sa_krylov<SaMpcg>(s))});
 #ifdef WEFT_WITH_PETSC
-  list.push_back({"petsc_gamg", "PETSc GAMG", "PETSc CG + GAMG (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
-                  false, maker<linear::PetscGamg>(krylov<linear::PetscGamg>(s))});
-  // The stronger peers through PETSc, with the same CG and stopping rule.
+  // The peers through PETSc, with the same CG and stopping rule, each with the best setting of
+  // the sweep at 90k vertices (bench/peers_sweep.sh, bench/results/peers); PETSC_OPTIONS
+  // ("-weft_...") changes them on top.
   auto peer = [&](linear::PetscAmg amg, std::string options) {
     linear::PetscGamg::Params p = krylov<linear::PetscGamg>(s);
     p.amg = amg;
     p.options = std::move(options);
     return maker<linear::PetscGamg>(p);
   };
-  list.push_back({"petsc_boomeramg", "hypre BoomerAMG", "PETSc CG + hypre BoomerAMG (classical AMG) on the prefiltered matrix", false,
-                  peer(linear::PetscAmg::boomeramg, "")});
-  list.push_back({"petsc_ml", "Trilinos ML", "PETSc CG + Trilinos ML (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes",
-                  false, peer(linear::PetscAmg::ml, "")});
+  list.push_back({"petsc_gamg", "PETSc GAMG",
+                  "PETSc CG + GAMG on the prefiltered matrix, S-filtered rigid modes; tuned: unsmoothed aggregation, threshold 0.01, "
+                  "one smoothing step per level",
+                  false, peer(linear::PetscAmg::gamg, "-pc_gamg_agg_nsmooths 0 -pc_gamg_threshold 0.01 -mg_levels_ksp_max_it 1")});
+  list.push_back({"petsc_boomeramg", "hypre BoomerAMG",
+                  "PETSc CG + hypre BoomerAMG (classical AMG) on the prefiltered matrix; tuned: PMIS coarsening, ext+i "
+                  "interpolation, aggressive coarsening on the first level",
+                  false,
+                  peer(linear::PetscAmg::boomeramg,
+                       "-pc_hypre_boomeramg_coarsen_type PMIS -pc_hypre_boomeramg_interp_type ext+i -pc_hypre_boomeramg_agg_nl 1")});
+  list.push_back({"petsc_ml", "Trilinos ML",
+                  "PETSc CG + Trilinos ML (smoothed aggregation) on the prefiltered matrix, S-filtered rigid modes; tuned: "
+                  "threshold 0.01, one smoothing step per level, coarsest 500",
+                  false, peer(linear::PetscAmg::ml, "-pc_ml_Threshold 0.01 -mg_levels_ksp_max_it 1 -pc_ml_maxCoarseSize 500")});
 #endif
   return list;
 }
