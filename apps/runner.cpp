@@ -47,9 +47,10 @@ MpiLaunch mpi_launch() {
     return -1;
   };
   MpiLaunch m;
-  const int size = first({"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"});
-  const int rank = first({"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"});
+  const int size = first({"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "SLURM_NTASKS"});
+  const int rank = first({"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK", "SLURM_PROCID"});
   if (size > 1 && rank >= 0 && rank < size) m = {rank, size};
+  else if (rank > 0) m = {rank, rank + 1};  // a launcher that gives the rank only: never write as rank 0
   return m;
 }
 
@@ -61,6 +62,11 @@ void require_distributed_solver(const AnySimulator& sim, const MpiLaunch& mpi) {
   std::string_view linear = "?";
   for (const ComboInfo& c : combos())
     if (c.key == sim.combo()) linear = c.linear;
+  const Json p = sim.params();
+  if (linear == "petsc_gamg" && p.contains("linear") && p["linear"].value("single_process", false))
+    throw ConfigError(fmt::format("mpirun with {} ranks: linear.single_process = true solves on each rank alone (every rank would "
+                                  "repeat the whole run); set it to false to solve across the ranks",
+                                  mpi.size));
   if (linear != "petsc_gamg")
     throw ConfigError(fmt::format("mpirun with {} ranks: combo {} solves its Newton systems with {}, on one process; under mpirun the "
                                   "systems are distributed by linear.solver = petsc_gamg (a build with -DWEFT_WITH_PETSC=ON), the "
@@ -451,8 +457,18 @@ int run_scene(const RunOptions& given) {
     std::ifstream in(opt.scene);
     effective = Json::parse(in, nullptr, true, true);
     for (const auto& o : opt.overrides) apply_override(effective, o);
+    // SA's preset auto picks its settings by size from the keys the scene gave: those stay as
+    // given (every effective value would pin auto's small-mesh settings at every size).
+    const Json given = effective.contains("linear") ? effective["linear"].value("preconditioner", Json::object()) : Json::object();
     const Json params = sim->params();
     for (const auto& [k, v] : params.items()) effective[k] = v;
+    effective["combo"] = std::string(sim->combo());  // the one that ran (linear.solver may have swapped the solver)
+    if (effective.contains("linear") && effective["linear"].contains("preconditioner") &&
+        effective["linear"]["preconditioner"].value("preset", "") == "auto") {
+      Json kept = given;
+      kept["preset"] = "auto";
+      effective["linear"]["preconditioner"] = kept;
+    }
   }
 
   clear_stop();

@@ -59,14 +59,12 @@ std::string prefixed_options(const std::string& options) {
   std::string out;
   std::size_t i = 0;
   while (i < options.size()) {
-    const std::size_t start = options.find_first_not_of(" \t", i);
+    const std::size_t start = options.find_first_not_of(" \t\n\r", i);
     if (start == std::string::npos) break;
-    const std::size_t end = std::min(options.find_first_of(" \t", start), options.size());
+    const std::size_t end = std::min(options.find_first_of(" \t\n\r", start), options.size());
     const std::string token = options.substr(start, end - start);
-    out += (out.empty() ? "" : " ") + (token.size() > 1 && token[0] == '-' && !std::isdigit(static_cast<unsigned char>(token[1])) &&
-                                               token[1] != '.'
-                                           ? "-weft_" + token.substr(1)
-                                           : token);
+    const bool name = token.size() > 1 && token[0] == '-' && !std::isdigit(static_cast<unsigned char>(token[1])) && token[1] != '.';
+    out += (out.empty() ? "" : " ") + (name && token.rfind("-weft_", 0) != 0 ? "-weft_" + token.substr(1) : token);
     i = end;
   }
   return out;
@@ -77,7 +75,7 @@ std::vector<std::string> option_names(const std::string& options) {
   std::vector<std::string> names;
   std::size_t i = 0;
   while ((i = options.find("-weft_", i)) != std::string::npos) {
-    const std::size_t end = std::min(options.find_first_of(" \t", i), options.size());
+    const std::size_t end = std::min(options.find_first_of(" \t\n\r", i), options.size());
     names.push_back(options.substr(i, end - i));
     i = end;
   }
@@ -331,10 +329,11 @@ Status PetscGamg::factorize(const BlockCsr& A) {
       WEFT_PETSC(ok, PetscOptionsHasName(nullptr, "weft_", "-pc_gamg_threshold", &given));
       if (!given) WEFT_PETSC(ok, PCGAMGSetThreshold(pc, th, prm_.threshold >= 0 ? 1 : 2));
     }
-    // Taken out again: the next solver in this process reads only its own.
+    WEFT_PETSC(ok, KSPSetUp(s.ksp));  // PCSetUp: the hierarchy; the levels' smoothers read their options here
+    // Taken out again once the levels have read them: the next solver in this process reads only its own.
     for (const std::string& name : option_names(prefixed_options(prm_.options))) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, name.c_str()));
+    if (prm_.amg == PetscAmg::ml) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, "-weft_pc_ml_nullspace"));
     if (const char* env = std::getenv("PETSC_OPTIONS")) WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, env));
-    WEFT_PETSC(ok, KSPSetUp(s.ksp));           // PCSetUp: the GAMG hierarchy
   }
   setup_seconds_ += assembly_seconds_ + pc_setup_seconds_ + prefilter_.take_seconds();
   s.factorized = static_cast<bool>(ok);

@@ -67,6 +67,13 @@ TEST_SUITE("apps") {
       // Every solve meets the Newton tolerance: the same trajectory to well within its motion.
       CHECK(run.summary["final_energy"]["gravity"].get<double>() == doctest::Approx(ref_gravity).epsilon(1e-4));
       CHECK(run.summary["final_energy"]["kinetic"].get<double>() == doctest::Approx(ref_kinetic).epsilon(1e-3));
+      // The effective scene the run wrote runs it again: the combination that ran, the same end.
+      const json effective = json::parse(slurp(fs::temp_directory_path() / ("weft_test_lsk_" + solver) / "out" / "scene.json"));
+      CHECK(effective["combo"] == "cloth_ip_" + solver);
+      const Run again = run_with("lsk_again_" + solver, effective, "");
+      REQUIRE_MESSAGE(again.r.code == 0, again.r.output);
+      CHECK(again.summary["final_energy"] == run.summary["final_energy"]);
+      if (solver == "sa_ppcg") CHECK(effective["linear"]["preconditioner"] == json{{"preset", "auto"}});  // auto picks again by size
     }
   }
 

@@ -86,11 +86,14 @@ TEST_SUITE("backends") {
     };
     const LinearReport ml = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::ml});
     CHECK(ml.levels >= 2);
+    // A level smoother's option is read when the hierarchy is built, and holds there too.
+    const LinearReport ml_one = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::ml, .options = "-mg_levels_ksp_max_it 1"});
+    CHECK(ml_one.iterations > ml.iterations);
     const LinearReport boomer = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg});
     const LinearReport strict =
         solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg, .options = "-pc_hypre_boomeramg_strong_threshold 0.9"});
     const LinearReport again = solve({.tolerance = 1e-8, .amg = linear::PetscAmg::boomeramg});
-    MESSAGE("iterations to 1e-8: ML " << ml.iterations << ", BoomerAMG " << boomer.iterations << ", strong threshold 0.9 "
+    MESSAGE("iterations to 1e-8: ML " << ml.iterations << " (one smoothing step per level " << ml_one.iterations << "), BoomerAMG " << boomer.iterations << ", strong threshold 0.9 "
                                       << strict.iterations << ", default again " << again.iterations);
     CHECK(strict.iterations != boomer.iterations);
     CHECK(again.iterations == boomer.iterations);
