@@ -385,6 +385,8 @@ int run_scene(const RunOptions& given) {
     private_out.emplace(mpi.rank);
     opt.out_dir = private_out->path.string();
     opt.quiet = true;
+    // Its frames and statistics would be rank 0's: not written (the simulation is the same).
+    for (const char* o : {"output.obj=false", "output.vtp=false", "output.stats=false"}) opt.overrides.emplace_back(o);
     spdlog::set_level(spdlog::level::off);
   }
   // 1. Validate everything before touching the output directory: the scene, the
