@@ -59,9 +59,7 @@ MpiLaunch mpi_launch() {
 /// may run there (every other one would repeat the whole run on each rank).
 void require_distributed_solver(const AnySimulator& sim, const MpiLaunch& mpi) {
   if (mpi.size <= 1) return;
-  std::string_view linear = "?";
-  for (const ComboInfo& c : combos())
-    if (c.key == sim.combo()) linear = c.linear;
+  const std::string_view linear = resolve_combo(sim.scene()).linear;
   const Json p = sim.params();
   if (linear == "petsc_gamg" && p.contains("linear") && p["linear"].value("single_process", false))
     throw ConfigError(fmt::format("mpirun with {} ranks: linear.single_process = true solves on each rank alone (every rank would "
@@ -375,11 +373,11 @@ class Progress {
 
 }  // namespace
 
-int run_scene(const RunOptions& given) {
+int run_scene(const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   // Under mpirun, rank 0 writes the outputs and the log; the others run silently.
   const MpiLaunch mpi = mpi_launch();
-  RunOptions opt = given;
+  RunOptions opt = options;
   std::optional<PrivateOutput> private_out;
   if (mpi.rank > 0) {
     private_out.emplace(mpi.rank);

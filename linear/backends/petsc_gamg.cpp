@@ -1,6 +1,7 @@
 #include "linear/backends/petsc_gamg.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <petscksp.h>
 
 #include <Eigen/Geometry>
@@ -54,32 +55,19 @@ bool petsc_alive() {
   return !finalized;
 }
 
-/// "-a 1 -b" -> "-weft_a 1 -weft_b": a solver's options under the prefix of its KSP.
-std::string prefixed_options(const std::string& options) {
-  std::string out;
+/// "-a 1 -b" -> {"-weft_a", "1", "-weft_b"}: a solver's options under the prefix of its KSP,
+/// split at whitespace (a negative number is a value, an option already prefixed stays).
+std::vector<std::string> prefixed_options(const std::string& options) {
+  std::vector<std::string> tokens;
   std::size_t i = 0;
-  while (i < options.size()) {
-    const std::size_t start = options.find_first_not_of(" \t\n\r", i);
-    if (start == std::string::npos) break;
-    const std::size_t end = std::min(options.find_first_of(" \t\n\r", start), options.size());
-    const std::string token = options.substr(start, end - start);
-    const bool name = token.size() > 1 && token[0] == '-' && !std::isdigit(static_cast<unsigned char>(token[1])) && token[1] != '.';
-    out += (out.empty() ? "" : " ") + (name && token.rfind("-weft_", 0) != 0 ? "-weft_" + token.substr(1) : token);
-    i = end;
-  }
-  return out;
-}
-
-/// The option names ("-weft_a", ...) of an options string.
-std::vector<std::string> option_names(const std::string& options) {
-  std::vector<std::string> names;
-  std::size_t i = 0;
-  while ((i = options.find("-weft_", i)) != std::string::npos) {
+  while ((i = options.find_first_not_of(" \t\n\r", i)) != std::string::npos) {
     const std::size_t end = std::min(options.find_first_of(" \t\n\r", i), options.size());
-    names.push_back(options.substr(i, end - i));
+    const std::string token = options.substr(i, end - i);
+    const bool name = token.size() > 1 && token[0] == '-' && !std::isdigit(static_cast<unsigned char>(token[1])) && token[1] != '.';
+    tokens.push_back(name && token.rfind("-weft_", 0) != 0 ? "-weft_" + token.substr(1) : token);
     i = end;
   }
-  return names;
+  return tokens;
 }
 
 /// Collects the first PETSc error of a sequence of calls.
@@ -322,7 +310,8 @@ Status PetscGamg::factorize(const BlockCsr& A) {
     WEFT_PETSC(ok, KSPSetOperators(s.ksp, s.A, s.A));
     // This solver's own options, then PETSC_OPTIONS="-weft_..." on top (read by KSPSetFromOptions).
     if (prm_.amg == PetscAmg::ml) WEFT_PETSC(ok, PetscOptionsSetValue(nullptr, "-weft_pc_ml_nullspace", "user"));
-    WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, prefixed_options(prm_.options).c_str()));
+    const std::vector<std::string> own = prefixed_options(prm_.options);
+    WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, fmt::format("{}", fmt::join(own, " ")).c_str()));
     if (const char* env = std::getenv("PETSC_OPTIONS")) WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, env));
     WEFT_PETSC(ok, KSPSetFromOptions(s.ksp));
     if (prm_.amg == PetscAmg::gamg) {
@@ -331,7 +320,8 @@ Status PetscGamg::factorize(const BlockCsr& A) {
     }
     WEFT_PETSC(ok, KSPSetUp(s.ksp));  // PCSetUp: the hierarchy; the levels' smoothers read their options here
     // Taken out again once the levels have read them: the next solver in this process reads only its own.
-    for (const std::string& name : option_names(prefixed_options(prm_.options))) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, name.c_str()));
+    for (const std::string& token : own)
+      if (token.rfind("-weft_", 0) == 0) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, token.c_str()));
     if (prm_.amg == PetscAmg::ml) WEFT_PETSC(ok, PetscOptionsClearValue(nullptr, "-weft_pc_ml_nullspace"));
     if (const char* env = std::getenv("PETSC_OPTIONS")) WEFT_PETSC(ok, PetscOptionsInsertString(nullptr, env));
   }
