@@ -137,10 +137,12 @@ LinearBenchSimulation::LinearBenchSimulation(const ExampleConfig& cfg) : cfg_(cf
   const MeshData gen = cfg.example == Example::reentrant
                            ? make_l_shape(Eigen::Vector2d(1, 1), {cfg.m + 1, cfg.m + 1}, cfg.tessellation, cfg.seed)
                            : make_rectangle(Eigen::Vector2d(1, 1), {cfg.m + 1, cfg.m + 1}, cfg.tessellation, cfg.seed);
-  // A scene built in code: one cloth with the default (cotton-like) material.
+  // A scene built in code: one cloth with the default (cotton-like) material and the thesis'
+  // bending constant k = D / 2 (its Table 11.1 systems).
   scene_.mesh = TriangleMesh(gen.V, gen.F);
   ClothSpec cloth;
   cloth.name = "sheet";
+  cloth.material.bending_calibration = BendingCalibration::thesis;
   scene_.spec.cloths.push_back(cloth);
   n_ = scene_.mesh.num_vertices();
   const int nf = scene_.mesh.num_faces();

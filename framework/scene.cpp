@@ -21,7 +21,7 @@ namespace weft {
 Checker ShellMaterial::validate(const std::string& path) const {
   Checker c(path);
   c.require(density > 0, "density", density, "> 0").require(thickness > 0, "thickness", thickness, "> 0");
-  // The stiffnesses the energies use must be finite: k = D / 2 grows with h^3.
+  // The stiffnesses the energies use must be finite: k grows with h^3.
   if (thickness > 0 && (orthotropic() ? youngs_modulus_warp && youngs_modulus_weft : youngs_modulus > 0)) {
     const double k = bending_k(), stretch = (orthotropic() ? *youngs_modulus_warp : youngs_modulus) * thickness;
     c.require(std::isfinite(k) && std::isfinite(stretch), "thickness", thickness,
@@ -33,7 +33,8 @@ Checker ShellMaterial::validate(const std::string& path) const {
     c.require(youngs_modulus > 0, "youngs_modulus", youngs_modulus, "> 0")
         .require(poisson_ratio > -1 && poisson_ratio < 1, "poisson_ratio", poisson_ratio, "in (-1, 1) (2D plane stress)");
     for (const auto& [key, value] : {std::pair{"youngs_modulus_warp", youngs_modulus_warp},
-                                     std::pair{"youngs_modulus_weft", youngs_modulus_weft}, std::pair{"shear_modulus", shear_modulus}})
+                                     std::pair{"youngs_modulus_weft", youngs_modulus_weft}, std::pair{"shear_modulus", shear_modulus},
+                                     std::pair{"bending_rigidity_weft", bending_rigidity_weft}})
       if (value) c.fail(fmt::format("{}.{} is only read when model = orthotropic: set model = \"orthotropic\" or remove it", path, key));
     return c;
   }

@@ -31,6 +31,14 @@ inline constexpr std::array<std::string_view, 2> material_model_names = {"isotro
 /// Where the warp direction of an orthotropic cloth comes from.
 enum class WarpFrom { angle, uv };
 inline constexpr std::array<std::string_view, 2> warp_from_names = {"angle", "uv"};
+/// How the hinge bending stiffness k follows from the flexural rigidity D (see ShellMaterial::bending_k).
+enum class BendingCalibration { plate, thesis };
+inline constexpr std::array<std::string_view, 2> bending_calibration_names = {"plate", "thesis"};
+/// Sum of a_e theta_e^2 over a triangle mesh bent into a cylinder of radius R, per A / R^2:
+/// 3 on equilateral and on jittered meshes (docs/methods/shells.md §6.13), where the plate
+/// energy (D / 2) integral of kappa^2 gives 1 / 2 per unit D. `plate` calibration divides D by
+/// 2 x this, so that a hinge mesh bent along one direction stores the plate's energy.
+inline constexpr double hinge_cylinder_factor = 3.0;
 
 /// Thin-shell material of one cloth: isotropic (Y, nu), or orthotropic from the engineering
 /// constants of a woven fabric (methods/shells §3.2).
@@ -54,7 +62,10 @@ struct ShellMaterial {
   std::optional<double> shear_modulus;        ///< [Pa] orthotropic: engineering G12 (G = 2 G12); required
   double poisson_ratio = 0.3;      ///< [-] isotropic: nu in (-1, 1); orthotropic: nu_xy (warp -> weft), eta nu^2 < 1
   double thickness = 3e-4;         ///< [m]
-  std::optional<double> bending_stiffness;  ///< [J] k; default see bending_k()
+  std::optional<double> bending_rigidity;       ///< [N m] D (along the warp when orthotropic); default from Y and h
+  std::optional<double> bending_rigidity_weft;  ///< [N m] D along the weft; default see rigidity_weft()
+  BendingCalibration bending_calibration = BendingCalibration::plate;
+  std::optional<double> bending_stiffness;  ///< [J] k itself; default see bending_k()
   WarpFrom warp_from = WarpFrom::angle;     ///< orthotropic: source of the warp direction
   double warp_angle = 0;           ///< [rad] orthotropic: warp angle in the sheet's (u, v) / texture plane
 
@@ -63,20 +74,43 @@ struct ShellMaterial {
   double eta() const {
     return orthotropic() ? youngs_modulus_weft.value_or(0) / youngs_modulus_warp.value_or(0) : 1.0;
   }
-  /// Hinge bending stiffness k [J] (methods/shells Eq. 5.11): `bending_stiffness` if given, else half
-  /// the flexural rigidity, k = D / 2:
-  ///   isotropic:   k = Y h^3 / (24 (1 - nu^2));
-  ///   orthotropic: k = sqrt(D_warp D_weft) / 2 = sqrt(Y_warp Y_weft) h^3 / (24 (1 - nu_xy nu_yx)),
-  ///                nu_xy nu_yx = eta nu^2 (geometric mean of the two principal rigidities of an
-  ///                orthotropic plate; equals the isotropic value when eta = 1).
+  /// Flexural rigidity D [N m] for curvature along the warp (isotropic: in every direction):
+  /// `bending_rigidity` if given, else the Kirchhoff plate's Y h^3 / (12 (1 - nu^2)),
+  /// orthotropic Y_warp h^3 / (12 (1 - nu_xy nu_yx)) with nu_xy nu_yx = eta nu^2.
+  double rigidity_warp() const {
+    if (bending_rigidity) return *bending_rigidity;
+    const double h3 = thickness * thickness * thickness;
+    if (orthotropic()) return youngs_modulus_warp.value_or(0) * h3 / (12.0 * (1.0 - eta() * poisson_ratio * poisson_ratio));
+    return youngs_modulus * h3 / (12.0 * (1.0 - poisson_ratio * poisson_ratio));
+  }
+  /// Flexural rigidity along the weft: `bending_rigidity_weft` if given, else `bending_rigidity`
+  /// if given (bending as stiff both ways), else the plate's Y_weft h^3 / (12 (1 - eta nu^2)) for
+  /// orthotropic and rigidity_warp() for isotropic materials.
+  double rigidity_weft() const {
+    if (bending_rigidity_weft) return *bending_rigidity_weft;
+    if (bending_rigidity || !orthotropic()) return rigidity_warp();
+    const double h3 = thickness * thickness * thickness;
+    return youngs_modulus_weft.value_or(0) * h3 / (12.0 * (1.0 - eta() * poisson_ratio * poisson_ratio));
+  }
+  /// k = D / (this): `plate` 2 x hinge_cylinder_factor = 6, so that the hinge energy of a sheet
+  /// bent along one direction is the plate's (D / 2) kappa^2 per area (docs/methods/shells.md
+  /// §6.13); `thesis` 2, the thesis' k = D / 2 (its Eq. 5.11), which makes such bending three
+  /// times too stiff.
+  double bending_divisor() const { return bending_calibration == BendingCalibration::plate ? 2.0 * hinge_cylinder_factor : 2.0; }
+  /// Hinge bending stiffness k [J] of a hinge whose bending direction (in-plane, across the
+  /// hinge edge) makes cos_warp with the warp: `bending_stiffness` if given, else
+  /// D(phi) / bending_divisor() with Huber's directional rigidity of an orthotropic plate,
+  ///   D(phi) = (sqrt(D_warp) cos^2 phi + sqrt(D_weft) sin^2 phi)^2,
+  /// which is D for isotropic materials and D_warp / D_weft along the warp / the weft.
+  double bending_k(double cos_warp) const {
+    if (bending_stiffness) return *bending_stiffness;
+    const double c2 = cos_warp * cos_warp, r = std::sqrt(rigidity_warp()) * c2 + std::sqrt(rigidity_weft()) * (1.0 - c2);
+    return r * r / bending_divisor();
+  }
+  /// k without a direction: `bending_stiffness` if given, else sqrt(D_warp D_weft) / bending_divisor().
   double bending_k() const {
     if (bending_stiffness) return *bending_stiffness;
-    const double h3 = thickness * thickness * thickness;
-    if (orthotropic()) {
-      const double yx = youngs_modulus_warp.value_or(0), yy = youngs_modulus_weft.value_or(0);
-      return std::sqrt(yx * yy) * h3 / (24.0 * (1.0 - poisson_ratio * poisson_ratio * yy / yx));
-    }
-    return youngs_modulus * h3 / (24.0 * (1.0 - poisson_ratio * poisson_ratio));
+    return std::sqrt(rigidity_warp() * rigidity_weft()) / bending_divisor();
   }
   /// Cross-field and stability checks (every violation at once), keys prefixed by `path`
   /// (e.g. "cloths.0.material"): the inequalities above, the orthotropic constants required
@@ -103,9 +137,19 @@ struct ShellMaterial {
              "isotropic: Poisson ratio, -1 < nu < 1 (2D plane stress); orthotropic: nu_xy = -strain_weft / strain_warp "
              "under uniaxial stress along the warp, (Y_weft / Y_warp) nu^2 < 1"});
     v.field("thickness", thickness, {Unit::length, Range::gt(0), "shell thickness h"});
+    v.field("bending_rigidity", bending_rigidity,
+            {Unit::energy, Range::gt(0),
+             "flexural rigidity D per unit width (along the warp when orthotropic), e.g. a measured KES-F B; default the plate's "
+             "Y h^3 / (12 (1 - nu^2)), orthotropic Y_warp h^3 / (12 (1 - eta nu^2))"});
+    v.field("bending_rigidity_weft", bending_rigidity_weft,
+            {Unit::energy, Range::gt(0),
+             "flexural rigidity D along the weft; default bending_rigidity if given, else Y_weft h^3 / (12 (1 - eta nu^2)) "
+             "(orthotropic) or the isotropic D"});
+    v.choice("bending_calibration", bending_calibration, bending_calibration_names,
+             "hinge stiffness k from D: plate (k = D / 6: a sheet bent along one direction stores the plate energy) or thesis "
+             "(k = D / 2, the thesis' Eq. 5.11, three times too stiff in such bending)");
     v.field("bending_stiffness", bending_stiffness,
-            {Unit::energy, Range::ge(0),
-             "hinge bending stiffness k; default Y h^3 / (24 (1 - nu^2)), orthotropic sqrt(Y_warp Y_weft) h^3 / (24 (1 - eta nu^2))"});
+            {Unit::energy, Range::ge(0), "hinge bending stiffness k itself (overrides bending_rigidity and bending_calibration)"});
     v.choice("warp_from", warp_from, warp_from_names,
              "orthotropic: warp direction from `warp_angle` in the generated sheet's (u, v) plane (angle), or per face from the "
              "OBJ texture coordinates: the rest-triangle image of the texture direction at `warp_angle` from the u axis (uv)");

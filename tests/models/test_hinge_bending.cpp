@@ -138,7 +138,7 @@ TEST_SUITE("models") {
   TEST_CASE("hinge_bending: stiffness is the mean of the two faces' k times 3 lbar^2 / (Abar_T + Abar_T~)") {
     ShellMaterial a = support::unit_material(), b = support::unit_material();
     a.bending_stiffness = 2.0;
-    b.bending_stiffness.reset();  // Y h^3 / (24 (1 - nu^2))
+    b.bending_stiffness.reset();  // D / 6 = Y h^3 / (72 (1 - nu^2))
     b.youngs_modulus = 5.0;
     b.thickness = 0.3;
     const MeshData m = support::hinge({0.3, 0.8, 0}, {0, 0, 0}, {1.5, 0, 0}, {0.9, -0.6, -0.1});
@@ -147,7 +147,7 @@ TEST_SUITE("models") {
     const double area_T = 0.5 * 1.5 * 0.8;
     const double area_Tt = 0.5 * (Eigen::Vector3d(1.5, 0, 0).cross(Eigen::Vector3d(0.9, -0.6, -0.1))).norm();
     const double k = 0.5 * (2.0 + b.bending_k());
-    CHECK(b.bending_k() == doctest::Approx(5.0 * 0.027 / (24 * (1 - 0.09))).epsilon(1e-14));
+    CHECK(b.bending_k() == doctest::Approx(5.0 * 0.027 / (72 * (1 - 0.09))).epsilon(1e-14));
     CHECK(model.hinge(0).kappa == doctest::Approx(k * 3 * 1.5 * 1.5 / (area_T + area_Tt)).epsilon(1e-14));
   }
 

@@ -542,10 +542,32 @@ TEST_SUITE("models") {
     }
   }
 
-  TEST_CASE("shell material: orthotropic bending stiffness is the geometric mean of the principal rigidities") {
+  TEST_CASE("shell material: orthotropic bending stiffness by direction and its geometric mean") {
     ShellMaterial o = support::orthotropic_material(4.0, 1.0, 0.5, 0.6, 0.1);  // eta = 0.25, eta nu^2 = 0.09
     o.bending_stiffness.reset();
+    CHECK(o.bending_k() == doctest::Approx(std::sqrt(4.0 * 1.0) * 1e-3 / (72 * (1 - 0.09))).epsilon(1e-14));
+    // Along the warp / the weft: that direction's plate rigidity, D = Y h^3 / 12 (1 - eta nu^2), over 6;
+    // between them Huber's (sqrt(D_warp) cos^2 + sqrt(D_weft) sin^2)^2.
+    const double dx = 4.0 * 1e-3 / (12 * (1 - 0.09)), dy = 1.0 * 1e-3 / (12 * (1 - 0.09));
+    CHECK(o.rigidity_warp() == doctest::Approx(dx).epsilon(1e-14));
+    CHECK(o.rigidity_weft() == doctest::Approx(dy).epsilon(1e-14));
+    CHECK(o.bending_k(1.0) == doctest::Approx(dx / 6).epsilon(1e-14));
+    CHECK(o.bending_k(0.0) == doctest::Approx(dy / 6).epsilon(1e-14));
+    const double c = std::cos(0.4), huber = std::sqrt(dx) * c * c + std::sqrt(dy) * (1 - c * c);
+    CHECK(o.bending_k(c) == doctest::Approx(huber * huber / 6).epsilon(1e-14));
+    CHECK(o.bending_k(c) < o.bending_k(1.0));
+    CHECK(o.bending_k(c) > o.bending_k(0.0));
+    // The thesis' calibration (Eq. 5.11): k = D / 2, three times the plate calibration's.
+    o.bending_calibration = BendingCalibration::thesis;
     CHECK(o.bending_k() == doctest::Approx(std::sqrt(4.0 * 1.0) * 1e-3 / (24 * (1 - 0.09))).epsilon(1e-14));
+    // Measured rigidities replace the plate's; one given for the warp holds for the weft too.
+    o.bending_calibration = BendingCalibration::plate;
+    o.bending_rigidity = 3e-5;
+    CHECK(o.rigidity_weft() == 3e-5);
+    CHECK(o.bending_k(0.3) == doctest::Approx(3e-5 / 6).epsilon(1e-14));
+    o.bending_rigidity_weft = 1e-5;
+    CHECK(o.bending_k(1.0) == doctest::Approx(3e-5 / 6).epsilon(1e-14));
+    CHECK(o.bending_k(0.0) == doctest::Approx(1e-5 / 6).epsilon(1e-14));
     ShellMaterial iso = support::unit_material();
     iso.bending_stiffness.reset();
     iso.youngs_modulus = 3.0, iso.poisson_ratio = 0.3, iso.thickness = 0.1;
