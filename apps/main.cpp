@@ -20,6 +20,7 @@
 #include "apps/bench_linear.hpp"
 #include "apps/plots.hpp"
 #include "apps/stability.hpp"
+#include "apps/validate.hpp"
 #include "apps/runner.hpp"
 #include "framework/build_info.hpp"
 #include "framework/scene.hpp"
@@ -177,10 +178,27 @@ int main(int argc, char** argv) {
   cmd_ablate->add_option("--reference-substeps", ablate.reference_substeps, "reference time step = scene dt / this (default 4)")
       ->check(CLI::PositiveNumber);
   cmd_ablate->add_flag("--loose-reference", ablate_loose_reference, "keep the reference's Newton tolerances (default: tightened)");
+  cmd_ablate->add_option("--sweep", ablate.sweeps,
+                         "KEY=V1,V2,...: run every combination at each value (repeatable: the product of the sweeps), all against one "
+                         "reference: a work-precision diagram, e.g. --sweep time.dt=0.01,0.005,0.0025")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   cmd_ablate->add_option("--duration", ablate.duration, "simulated time per run [s] (default: the scene's)")->check(CLI::PositiveNumber);
   cmd_ablate->add_option("-o,--out", ablate.out_dir, "output directory (default: out-ablate)");
   cmd_ablate->add_flag("--no-plots", ablate_no_plots, "tables only");
   cmd_ablate->add_flag("-q,--quiet", ablate.quiet, "no per-run lines");
+
+  app::ValidateOptions validate;
+  bool validate_no_plots = false;
+  auto* cmd_validate = app.add_subcommand(
+      "validate", "reference problems with closed-form or exact answers (membrane stretch, cantilever elastica, incline): "
+                  "a table of reference, measured, error and pass; CSV, JSON, report.md; exit 4 when one misses");
+  cmd_validate->add_option("overrides", validate.overrides, "key=value overrides applied to every problem's scene");
+  cmd_validate->add_flag("--quick", validate.quick, "the reduced suite (coarse meshes), as the default tests run it");
+  cmd_validate->add_option("--only", validate.only, "problems whose name starts with this (repeatable), e.g. cantilever/tan");
+  cmd_validate->add_option("-o,--out", validate.out_dir, "output directory (default: out-validate)");
+  cmd_validate->add_flag("--no-plots", validate_no_plots, "tables only");
+  cmd_validate->add_flag("-q,--quiet", validate.quiet, "no per-problem lines");
 
   auto* cmd_render = app.add_subcommand(
       "render", "frames of a `weft run` output directory to PNG with POV-Ray, an animated GIF or MP4, or a side-by-side "
@@ -252,6 +270,10 @@ int main(int argc, char** argv) {
     ablate.plots = !ablate_no_plots;
     ablate.reference_tighten = !ablate_loose_reference;
     return app::run_ablate(ablate);
+  }
+  if (*cmd_validate) {
+    validate.plots = !validate_no_plots;
+    return app::run_validate(validate);
   }
   if (*cmd_render) return app::run_python_tool("weft_render.py", cmd_render->remaining());
   if (*cmd_keys) {

@@ -8,11 +8,15 @@ Run with the system interpreter (/usr/bin/python3): Debian's matplotlib lives in
       stability map from `weft stability`'s stability.csv: one panel per combination, the
       time step down (log), the varied scene value across; cells coloured by outcome
       (stable, diverged, not converged, excessive strain, invalid).
-  weft_plot.py pareto CSV [--out DIR] [--x COL] [--y COL] [--label COL]
-      error against run time (log-log), one point per row, the Pareto front marked
-      (no other row is both faster and more accurate).
+  weft_plot.py pareto CSV [--out DIR] [--x COL] [--y COL] [--label COL] [--point COL]
+      the work-precision diagram: error against run time (log-log), one curve per label
+      through its rows (the sweep points, their values beside them; a legend names the
+      curves), and the Pareto front over every point (no other is both faster and more accurate).
   weft_plot.py stages CSV [--out DIR] [--label COL] [--prefix P]
       time per stage: one stacked bar per row from the columns named P<stage>.
+  weft_plot.py validate CSV [--out DIR]
+      `weft validate`'s validate.csv: one bar per problem, its error over its tolerance
+      (green: pass, red: missed), the pass line at 1.
   weft_plot.py histories JSONL [--out DIR] [--key K] [--label COL]
       convergence histories: one line per JSON record, the list under K (log y).
   weft_plot.py scaling CSV --x COL --y COL[,COL...] --group COL [--out DIR] [--title T]
@@ -162,34 +166,47 @@ def pareto_front(points):
 
 def plot_pareto(args):
     rows = read_csv(args.csv, [args.x, args.y, args.label])
-    pts, labels, skipped, failed = [], [], [], []
+    groups, skipped, failed = {}, [], []  # label -> [(x, y, point)], in the order met
     for i, r in enumerate(rows):
+        name = r[args.label] + (" " + r[args.point] if r.get(args.point) else "")
         if r.get("status", "ok") != "ok":  # a failed run's partial error would flatter it
-            failed.append(r[args.label])
+            failed.append(name)
             continue
         x = number(args.csv, i, r, args.x, positive=True)
         y = number(args.csv, i, r, args.y)
         if y <= 0:  # the reference itself (zero error) has no place on a log axis
-            skipped.append(r[args.label])
+            skipped.append(name)
             continue
-        pts.append((x, y))
-        labels.append(r[args.label])
-    if not pts:
+        groups.setdefault(r[args.label], []).append((x, y, r.get(args.point, "")))
+    if not groups:
         raise InputError("{}: no row with {} > 0".format(args.csv, args.y))
+    pts = [(x, y) for g in groups.values() for x, y, _ in g]
     plt = load_pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = plt.subplots(figsize=(8.0, 4.8))
+    # One curve per label through its points in order of run time; a legend names the curves
+    # and each point carries only its sweep value, so no label lands on another's name.
+    markers = "osD^v<>phX*"
+    cmap = plt.get_cmap("tab10" if len(groups) <= 10 else "tab20")
+    for k, (name, g) in enumerate(groups.items()):
+        g = sorted(g)
+        ax.plot([p[0] for p in g], [p[1] for p in g], marker=markers[k % len(markers)], color=cmap(k % cmap.N), lw=1.2,
+                ms=5, zorder=3, label=name)
+        if len(g) > 1:
+            for x, y, point in g:
+                value = " ".join(v.split("=", 1)[-1] for v in point.split())
+                ax.annotate(value, (x, y), textcoords="offset points", xytext=(3, -9), fontsize=6, color=cmap(k % cmap.N))
     front = pareto_front(pts)
-    ax.scatter([p[0] for p in pts], [p[1] for p in pts], color="#377eb8", zorder=3)
-    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "--", color="#e41a1c", zorder=2, label="Pareto front")
-    for (x, y), name in zip(pts, labels):
-        ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "--", color="black", lw=1, zorder=2, label="Pareto front")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(args.x)
     ax.set_ylabel(args.y)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     notes = []
+    keys = sorted({v.split("=", 1)[0] for g in groups.values() for _, _, p in g for v in p.split()})
+    if keys:
+        notes.append("swept: " + ", ".join(keys))
     if skipped:
         notes.append("not shown (zero error): " + ", ".join(skipped))
     if failed:
@@ -217,6 +234,27 @@ def plot_stages(args):
     ax.set_ylabel("wall time [s]")
     ax.legend(fontsize=8)
     save(fig, args.out, "stages")
+
+
+def plot_validate(args):
+    rows = read_csv(args.csv, ["problem", "error", "tolerance", "result"])
+    ratios = []
+    for i, r in enumerate(rows):
+        tol = number(args.csv, i, r, "tolerance", positive=True)
+        ratios.append(number(args.csv, i, r, "error") / tol if r.get("status", "ok") == "ok" else float("nan"))
+    plt = load_pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 0.32 * len(rows) + 1.4))
+    y = list(range(len(rows)))[::-1]
+    colours = ["tab:green" if r["result"] == "pass" else "tab:red" for r in rows]
+    ax.barh(y, [v if v == v else 0 for v in ratios], color=colours)
+    for yi, v in zip(y, ratios):
+        if v != v:
+            ax.text(0.02, yi, "run failed", va="center", fontsize=8, color="tab:red")
+    ax.axvline(1.0, color="black", lw=1, ls="--")
+    ax.set_yticks(y)
+    ax.set_yticklabels([r["problem"] for r in rows], fontsize=8)
+    ax.set_xlabel("error / tolerance (pass below 1)")
+    save(fig, args.out, "validate")
 
 
 def plot_histories(args):
@@ -276,9 +314,10 @@ def main(argv=None):
     # kind, help, plot function, input argument, options: a default or add_argument's keywords
     kinds = [
         ("stability", "stability map from stability.csv", plot_stability, "csv", {"title": ""}),
-        ("pareto", "error against run time with the Pareto front", plot_pareto, "csv",
-         {"x": "wall_seconds", "y": "rms_error", "label": "combo"}),
+        ("pareto", "error against run time, one curve per label through its sweep points, with the Pareto front", plot_pareto, "csv",
+         {"x": "wall_seconds", "y": "rms_error", "label": "combo", "point": "point"}),
         ("stages", "time per stage, stacked", plot_stages, "csv", {"label": "combo", "prefix": "seconds_"}),
+        ("validate", "each problem's error against its tolerance, from validate.csv", plot_validate, "csv", {}),
         ("histories", "convergence histories", plot_histories, "jsonl", {"key": "residuals", "label": "label"}),
         ("scaling", "growth with problem size, one line per group (log-log)", plot_scaling, "csv",
          {"x": {"required": True},

@@ -57,6 +57,16 @@ r = run("stages", ab, "--out", out)
 assert r.returncode == 0, r.stderr
 check_images("stages")
 
+val = os.path.join(out, "validate.csv")
+with open(val, "w") as f:
+    f.write("problem,quantity,unit,reference,measured,error,tolerance,error_kind,result,status,steps,seconds,source\n"
+            "cantilever/theta,tip drop,m,0.416,0.42,0.01,0.05,relative,pass,ok,80,1.0,elastica\n"
+            "incline/stick,slide distance,m,0,0.002,0.002,0.001,absolute,fail,ok,240,0.5,Coulomb\n"
+            "membrane/uniaxial,contraction,-,0.068,0,0,0.02,relative,fail,failed at step 3 (solve): x,3,0.1,StVK\n")
+r = run("validate", val, "--out", out)
+assert r.returncode == 0, r.stderr
+check_images("validate")
+
 hist = os.path.join(out, "histories.jsonl")
 with open(hist, "w") as f:
     f.write('{"label": "a", "residuals": [1, 0.1, 0.001]}\n{"label": "b", "residuals": [1, 0.5, 0.2, 0.01]}\n')
