@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <numeric>
+#include <sstream>
 
 #include "apps/bench_common.hpp"
 #include "apps/plots.hpp"
@@ -153,15 +154,46 @@ AblateRow run_one(const std::string& scene_path, const std::vector<std::string>&
   return row;
 }
 
+/// A row's name in tables and plots: the combination, and its sweep point if any.
+std::string label(const AblateRow& r) { return r.point.empty() ? r.combo : r.combo + " " + r.point; }
+
+/// The sweep points: the product of the sweeps' values, each point one override per sweep.
+std::vector<std::vector<std::string>> sweep_points(const std::vector<std::string>& sweeps, std::vector<std::string>& problems) {
+  std::vector<std::vector<std::string>> points = {{}};
+  for (const std::string& sw : sweeps) {
+    const size_t eq = sw.find('=');
+    std::vector<std::string> values;
+    if (eq != std::string::npos) {
+      std::string item;
+      std::stringstream ss(sw.substr(eq + 1));
+      while (std::getline(ss, item, ','))
+        if (!item.empty()) values.push_back(item);
+    }
+    if (eq == std::string::npos || eq == 0 || values.empty()) {
+      problems.push_back(fmt::format("--sweep \"{}\": expected KEY=V1,V2,... (e.g. time.dt=0.01,0.005)", sw));
+      continue;
+    }
+    std::vector<std::vector<std::string>> next;
+    for (const auto& p : points)
+      for (const std::string& v : values) {
+        next.push_back(p);
+        next.back().push_back(sw.substr(0, eq) + "=" + v);
+      }
+    points = std::move(next);
+  }
+  return points;
+}
+
 std::string csv_header() {
-  std::string h = "combo,status,steps,steps_planned,frames_compared,rms_error,max_error,energy_drift,penetrations_max,"
+  std::string h = "combo,point,label,status,steps,steps_planned,frames_compared,rms_error,max_error,energy_drift,penetrations_max,"
                   "penetrations_end,newton_iterations,linear_iterations,contacts,wall_seconds";
   for (std::string_view s : stage_names) h += fmt::format(",seconds_{}", s);
   return h + "\n";
 }
 
 std::string csv_row(const AblateRow& r) {
-  std::string line = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{}", r.combo, csv_field(r.status == "ok" ? "ok" : r.status),
+  std::string line = fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}", r.combo, csv_field(r.point), csv_field(label(r)),
+                                 csv_field(r.status == "ok" ? "ok" : r.status),
                                  r.steps, r.steps_planned, r.frames_compared, r.rms_error, r.max_error, r.energy_drift,
                                  r.penetrations_max, r.penetrations_end, r.newton_iterations, r.linear_iterations, r.contacts,
                                  r.wall_seconds);
@@ -172,7 +204,7 @@ std::string csv_row(const AblateRow& r) {
 Json to_json(const AblateRow& r) {
   Json stages = Json::object();
   for (size_t s = 0; s < r.stage_seconds.size(); ++s) stages[std::string(stage_names[s])] = r.stage_seconds[s];
-  return {{"combo", r.combo}, {"status", r.status}, {"steps", r.steps}, {"steps_planned", r.steps_planned},
+  return {{"combo", r.combo}, {"point", r.point}, {"status", r.status}, {"steps", r.steps}, {"steps_planned", r.steps_planned},
           {"frames_compared", r.frames_compared}, {"rms_error", r.rms_error}, {"max_error", r.max_error},
           {"energy_drift", r.energy_drift}, {"penetrations_max", r.penetrations_max}, {"penetrations_end", r.penetrations_end},
           {"newton_iterations", r.newton_iterations}, {"linear_iterations", r.linear_iterations}, {"contacts", r.contacts},
@@ -184,6 +216,7 @@ Json to_json(const AblateRow& r) {
 int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
   // Everything is validated before any run: the scene, every combination, the reference.
   std::vector<std::string> names;
+  std::vector<std::vector<std::string>> points;
   std::string reference;
   std::vector<std::string> ref_ov;
   try {
@@ -202,19 +235,23 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
       }
     }
     if (names.empty() && problems.empty()) problems.push_back("--combos: no combination to run");
+    points = sweep_points(opt.sweeps, problems);
     if (opt.reference_substeps < 1) problems.push_back(fmt::format("--reference-substeps = {} must be >= 1", opt.reference_substeps));
     if (!problems.empty()) throw ConfigError(fmt::format("{}: cannot ablate", opt.scene), problems);
-    for (const std::string& n : names) {
-      std::vector<std::string> ov = opt.overrides;
-      append_combo_overrides(ov, n);
-      if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
-      make_simulator(load_scene(opt.scene, ov));
-    }
+    double smallest_dt = scene.spec.time.dt;
+    for (const std::string& n : names)
+      for (const auto& point : points) {
+        std::vector<std::string> ov = opt.overrides;
+        append_combo_overrides(ov, n);
+        ov.insert(ov.end(), point.begin(), point.end());
+        if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
+        smallest_dt = std::min(smallest_dt, make_simulator(load_scene(opt.scene, ov))->scene().spec.time.dt);
+      }
     reference = opt.reference.empty() ? default_reference(scene) : opt.reference;
     ref_ov = opt.overrides;
     append_combo_overrides(ref_ov, reference);
     if (opt.duration > 0) ref_ov.push_back(fmt::format("time.duration={}", opt.duration));
-    ref_ov.push_back(fmt::format("time.dt={}", scene.spec.time.dt / opt.reference_substeps));
+    ref_ov.push_back(fmt::format("time.dt={}", smallest_dt / opt.reference_substeps));
     make_simulator(load_scene(opt.scene, ref_ov));
     // Tight tolerances where the reference's policies have them (each kept only if accepted).
     if (opt.reference_tighten)
@@ -238,7 +275,7 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
   std::ofstream csv((dir / "ablate.csv").string());
   std::ofstream hist((dir / "histories.jsonl").string());
   csv << csv_header();
-  Json doc = {{"scene", opt.scene}, {"overrides", opt.overrides}};
+  Json doc = {{"scene", opt.scene}, {"overrides", opt.overrides}, {"sweeps", opt.sweeps}};
   doc["reference"] = {{"combo", reference}, {"overrides", ref_ov}};
   auto write_json = [&](const std::vector<AblateRow>& rows) {
     Json r = Json::array();
@@ -261,17 +298,22 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
     return 3;
   }
   std::vector<AblateRow> rows;
-  for (const std::string& n : names) {
-    std::vector<std::string> ov = opt.overrides;
-    append_combo_overrides(ov, n);
-    if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
-    Json h;
-    rows.push_back(run_one(opt.scene, ov, &ref, nullptr, size, h, opt.quiet));
-    csv << csv_row(rows.back());
-    csv.flush();
-    if (!h.is_null()) hist << h.dump() << "\n" << std::flush;
-    write_json(rows);
-  }
+  for (const std::string& n : names)
+    for (const auto& point : points) {
+      std::vector<std::string> ov = opt.overrides;
+      append_combo_overrides(ov, n);
+      ov.insert(ov.end(), point.begin(), point.end());
+      if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
+      Json h;
+      AblateRow row = run_one(opt.scene, ov, &ref, nullptr, size, h, opt.quiet);
+      row.point = fmt::format("{}", fmt::join(point, " "));
+      if (!h.is_null()) h["label"] = label(row);
+      rows.push_back(std::move(row));
+      csv << csv_row(rows.back());
+      csv.flush();
+      if (!h.is_null()) hist << h.dump() << "\n" << std::flush;
+      write_json(rows);
+    }
   csv.close();
   hist.close();
 
@@ -280,14 +322,16 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
   fmt::print("| combination | status | RMS error | max error | energy drift | penetrations (max) | Newton it. | linear it. | wall [s] |"
              " contact [s] |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const AblateRow& r : rows)
-    fmt::print("| {} | {} | {:.3e} | {:.3e} | {:.2e} | {} | {} | {} | {:.3f} | {:.3f} |\n", r.combo, r.status, r.rms_error, r.max_error,
+    fmt::print("| {} | {} | {:.3e} | {:.3e} | {:.2e} | {} | {} | {} | {:.3f} | {:.3f} |\n", label(r), r.status, r.rms_error, r.max_error,
                r.energy_drift, r.penetrations_max, r.newton_iterations, r.linear_iterations, r.wall_seconds,
                r.stage_seconds[static_cast<int>(Stage::contact)]);
   fmt::print("\ntables: {}, {}\n", (dir / "ablate.csv").string(), (dir / "ablate.json").string());
   if (opt.plots) {
     const std::string csv_path = (dir / "ablate.csv").string(), hist_path = (dir / "histories.jsonl").string();
-    bool written = plot("pareto", csv_path, opt.out_dir, {"--x", "wall_seconds", "--y", "rms_error"}) == PlotOutcome::written;
-    written = plot("stages", csv_path, opt.out_dir) == PlotOutcome::written && written;
+    // One curve per combination through its sweep points (a single point each without sweeps).
+    bool written = plot("pareto", csv_path, opt.out_dir, {"--x", "wall_seconds", "--y", "rms_error", "--label", "combo", "--point", "point"}) ==
+                   PlotOutcome::written;
+    written = plot("stages", csv_path, opt.out_dir, {"--label", "label"}) == PlotOutcome::written && written;
     if (std::filesystem::file_size(hist_path) > 0) written = plot("histories", hist_path, opt.out_dir) == PlotOutcome::written && written;
     if (written) fmt::print(stderr, "plots: {}/{{pareto,stages,histories}}.{{png,svg}}\n", opt.out_dir);
   }

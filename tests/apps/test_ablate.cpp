@@ -5,7 +5,9 @@
 // `weft render` forwards to scripts/weft_render.py.
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstdlib>
+#include <fstream>
 
 #include "ablate_support.hpp"
 #include "apps/ablate.hpp"
@@ -114,6 +116,47 @@ TEST_SUITE("apps") {
       CHECK(r.output.find("plot skipped: python3-matplotlib is not installed") != std::string::npos);
       CHECK(!std::filesystem::exists(dir / "pareto.png"));
     }
+  }
+
+  TEST_CASE("ablate: a time step sweep gives backward Euler's first-order error with one CSV row per point") {
+    AblateOptions o = tiny("ablate_sweep");
+    o.combos = {"cloth_ip_direct"};
+    o.sweeps = {"time.dt=0.020833333333333332,0.010416666666666666,0.005208333333333333"};  // frame / 2, 4, 8
+    std::vector<AblateRow> rows;
+    REQUIRE(run_ablate(o, &rows) == 0);
+    REQUIRE(rows.size() == 3);
+    for (const AblateRow& r : rows) CHECK(r.status == "ok");
+    CHECK(rows[0].point == "time.dt=0.020833333333333332");
+    // The one reference runs at the smallest dt / 4; each halving of dt halves the error.
+    for (int i = 0; i + 1 < 3; ++i) {
+      CAPTURE(i);
+      REQUIRE(rows[i + 1].rms_error > 0);
+      CHECK(rows[i + 1].rms_error < rows[i].rms_error);
+      const double slope = std::log2(rows[i].rms_error / rows[i + 1].rms_error);
+      CAPTURE(slope);
+      CHECK(slope > 0.7);
+      CHECK(slope < 1.4);
+    }
+    std::ifstream csv(o.out_dir + "/ablate.csv");
+    std::string header, line;
+    std::getline(csv, header);
+    CHECK(header.rfind("combo,point,label,", 0) == 0);
+    int n = 0;
+    while (std::getline(csv, line)) ++n;
+    CHECK(n == 3);
+    // Two sweeps: their product.
+    AblateOptions two = tiny("ablate_sweep2");
+    two.combos = {"cloth_ip_direct", "cloth_tan_ip_direct"};
+    two.sweeps = {"time.dt=0.020833333333333332,0.010416666666666666", "integrator.relative_tolerance=1e-4,1e-8"};
+    REQUIRE(run_ablate(two, &rows) == 0);
+    CHECK(rows.size() == 8);
+    CHECK(rows.back().point == "time.dt=0.010416666666666666 integrator.relative_tolerance=1e-8");
+    // A malformed sweep is refused before any run.
+    AblateOptions bad = tiny("ablate_sweep_bad");
+    bad.combos = {"cloth_ip_direct"};
+    bad.sweeps = {"time.dt"};
+    CHECK(run_ablate(bad) == 2);
+    CHECK(!std::filesystem::exists(bad.out_dir + "/ablate.csv"));
   }
 
   TEST_CASE("ablate: a combination that does not apply is refused before any run") {
