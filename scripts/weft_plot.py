@@ -164,6 +164,37 @@ def pareto_front(points):
     return sorted(front, key=lambda i: points[i][0])
 
 
+def short_number(text):
+    """A sweep value as written in a plot: 0.010416666666666666 -> 0.01042; other text unchanged."""
+    try:
+        return "{:.4g}".format(float(text))
+    except ValueError:
+        return text
+
+
+def place_labels(fig, ax, labels):
+    """Direct labels of points that do not overlap: each label tries a few offsets around its
+    point and is left out (the legend and the CSV still name the point) when all of them would
+    cover a label already placed."""
+    fig.canvas.draw()
+    to_px = ax.transData.transform
+    placed = []  # boxes in pixels: (x0, y0, x1, y1)
+    offsets = [(4, -10), (4, 4), (-4, 4), (-4, -10), (4, -20), (4, 14)]
+    scale = fig.dpi / 72.0
+    for x, y, text, colour in labels:
+        px, py = to_px((x, y))
+        w, h = 6 * 0.6 * len(text) * scale, 7 * scale  # 6 pt text
+        for dx, dy in offsets:
+            x0 = px + dx * scale - (w if dx < 0 else 0)
+            y0 = py + dy * scale
+            box = (x0, y0, x0 + w, y0 + h)
+            if all(box[2] < b[0] or box[0] > b[2] or box[3] < b[1] or box[1] > b[3] for b in placed):
+                placed.append(box)
+                ax.annotate(text, (x, y), textcoords="offset points", xytext=(dx, dy), fontsize=6, color=colour,
+                            ha="right" if dx < 0 else "left")
+                break
+
+
 def plot_pareto(args):
     rows = read_csv(args.csv, [args.x, args.y, args.label])
     groups, skipped, failed = {}, [], []  # label -> [(x, y, point)], in the order met
@@ -187,22 +218,25 @@ def plot_pareto(args):
     # and each point carries only its sweep value, so no label lands on another's name.
     markers = "osD^v<>phX*"
     cmap = plt.get_cmap("tab10" if len(groups) <= 10 else "tab20")
+    labels = []  # (x, y, text, colour): placed after the axes' limits are known
     for k, (name, g) in enumerate(groups.items()):
         g = sorted(g)
         ax.plot([p[0] for p in g], [p[1] for p in g], marker=markers[k % len(markers)], color=cmap(k % cmap.N), lw=1.2,
                 ms=5, zorder=3, label=name)
         if len(g) > 1:
-            for x, y, point in g:
-                value = " ".join(v.split("=", 1)[-1] for v in point.split())
-                ax.annotate(value, (x, y), textcoords="offset points", xytext=(3, -9), fontsize=6, color=cmap(k % cmap.N))
+            labels += [(x, y, " ".join(short_number(v.split("=", 1)[-1]) for v in point.split()), cmap(k % cmap.N))
+                       for x, y, point in g]
     front = pareto_front(pts)
-    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "--", color="black", lw=1, zorder=2, label="Pareto front")
+    # Wide and pale under the curves, so that it stays visible where it follows one of them.
+    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "-", color="black", lw=5, alpha=0.18, zorder=1,
+            solid_capstyle="round", label="Pareto front")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(args.x)
     ax.set_ylabel(args.y)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    place_labels(fig, ax, labels)
     notes = []
     keys = sorted({v.split("=", 1)[0] for g in groups.values() for _, _, p in g for v in p.split()})
     if keys:

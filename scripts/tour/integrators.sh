@@ -13,13 +13,16 @@
 # 2. `weft stability` on the hinge: dt x Young's modulus (1e6, 1e8, 1e11 Pa), both
 #    combinations at the default limit of 100 Newton iterations per step -> hinge_map/.
 # 3. (not with --quick) the same map on the hanging cloth at 11 x 11 vertices, 1 s -> cloth_map/.
+# 4. The work-precision diagram: `weft ablate --sweep time.dt=...` of both combinations on the
+#    hanging cloth at 11 x 11 vertices, 0.5 s (--quick: 7 x 7, 0.25 s), error against run time
+#    -> work_precision/ (ablate.csv, pareto.{png,svg}).
 # Then scripts/tour/tour_summary.py writes summary.md and summary.json.
 # Environment: WEFT (default build/release/apps/weft), TOUR_QUICK=1 (same as --quick).
 set -euo pipefail
 set -f  # overrides hold brackets: no globbing
 # shellcheck source=scripts/tour/common.sh
 source "$(dirname "$0")/common.sh"
-tour_init integrators.sh integrators 17 "$@"
+tour_init integrators.sh integrators 20 "$@"
 mkdir -p "$OUT/runs"
 export OMP_NUM_THREADS=1  # 4 and 121 vertices: threads only wait for each other, worst on a loaded machine
 MAXIT=10000
@@ -59,5 +62,11 @@ if [ "$QUICK" != 1 ]; then
     --vary cloths.0.material.youngs_modulus=1e6,1e8,1e11 --combos cloth_ip_direct cloth_root_direct --dt $DTS \
     -o "$OUT/cloth_map" -q
 fi
+# 4. work-precision diagram: frame / 2, 4, 8, 16
+WP_RES="[11,11]"; WP_T=0.5
+[ "$QUICK" = 1 ] && WP_RES="[7,7]" && WP_T=0.25
+"$WEFT" ablate scenes/hanging_cloth.json "cloths.0.mesh.resolution=$WP_RES" --combos cloth_ip_direct cloth_root_direct \
+  --sweep time.dt=0.020833333333333332,0.010416666666666666,0.005208333333333333,0.0026041666666666665 \
+  --duration "$WP_T" -o "$OUT/work_precision" -q > "$OUT/work_precision.log" 2>&1
 tour_finished
 /usr/bin/python3 scripts/tour/tour_summary.py integrators "$OUT"

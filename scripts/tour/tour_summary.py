@@ -7,6 +7,7 @@ scripts/weft_plot.py (skipped with a message when Debian's python3-matplotlib is
   tour_summary.py linear OUT        bench/bench_linear.csv of `weft bench linear`
   tour_summary.py contact OUT       stability.csv of `weft stability` on the whip (its contact_steps
                                     tell a run that met the wall from one that never reached it)
+  integrators and contact also summarise work_precision/ablate.csv (`weft ablate --sweep time.dt=...`)
 
 Standard library only. Exit status 0, or 2 when an input is missing or malformed.
 """
@@ -165,8 +166,49 @@ def integrators(out):
         md.append("\n```\n{}\n```".format(map_text(os.path.join(out, grid))))
     md.append("\nPlots: histories.{png,svg} (first-step residuals), hinge_map/stability_map.{png,svg}" +
               (", cloth_map/stability_map.{png,svg}" if "cloth_map" in maps else "") + ".\n")
-    doc = {"experiment": "integrators", "first_step": rows, "maps": maps, "plots": plots}
+    wp, wp_md = work_precision(out)
+    md += wp_md
+    doc = {"experiment": "integrators", "first_step": rows, "maps": maps, "plots": plots, "work_precision": wp}
     write(out, "\n".join(md), doc)
+
+
+def work_precision(out):
+    """work_precision/ablate.csv of `weft ablate --sweep time.dt=...`: per combination its points
+    in order of falling dt and the least-squares order of the error in dt; ({}, []) without it."""
+    path = os.path.join(out, "work_precision", "ablate.csv")
+    if not os.path.exists(path):
+        return {}, []
+    rows = read_csv(path, ["combo", "point", "status", "rms_error", "newton_iterations", "contacts", "wall_seconds"])
+    curves = {}
+    for r in rows:
+        key, _, value = r["point"].partition("=")
+        if key != "time.dt":
+            raise InputError("{}: point '{}' is not a time.dt sweep".format(path, r["point"]))
+        curves.setdefault(r["combo"], []).append({
+            "dt": float(value), "ok": r["status"] == "ok", "rms_error": float(r["rms_error"]),
+            "newton_iterations": int(r["newton_iterations"]), "contacts": int(r["contacts"]),
+            "wall_seconds": float(r["wall_seconds"])})
+    doc = {}
+    for c, pts in curves.items():
+        pts.sort(key=lambda p: -p["dt"])
+        good = [p for p in pts if p["ok"] and p["rms_error"] > 0]
+        doc[c] = {"points": pts, "order": fit_exponent([p["dt"] for p in good], [p["rms_error"] for p in good])}
+    combos = list(doc)
+    dts = [p["dt"] for p in doc[combos[0]]["points"]]
+    md = ["## Work-precision diagram (`weft ablate --sweep time.dt=...`)\n",
+          "RMS vertex error against one reference run (relative to the scene's size), Newton iterations and wall "
+          "time of each run; order: least-squares slope of log error against log dt.\n",
+          "| combination | order | " + " | ".join("dt = {:.4g} s".format(dt) for dt in dts) + " |",
+          "|---|---:|" + "---:|" * len(dts)]
+    for c in combos:
+        cells = ["{:.3g} ({} it., {:.2f} s{})".format(p["rms_error"], p["newton_iterations"], p["wall_seconds"],
+                                                    ", {} contacts".format(p["contacts"]) if p["contacts"] else "")
+                 if p["ok"] else "failed" for p in doc[c]["points"]]
+        order = doc[c]["order"]
+        md.append("| {} | {} | {} |".format(c, "{:.2f}".format(order) if order is not None else "-", " | ".join(cells)))
+    md.append("\nPlot (written by `weft ablate`): work_precision/pareto.{png,svg}, error against run time, one curve per "
+              "combination and the Pareto front.\n")
+    return doc, md
 
 
 # ---------------------------------------------------------------------------------------------
@@ -331,7 +373,9 @@ def contact(out):
                                                                      r["message"].replace("|", "/")))
     wall = sum(float(r["wall_seconds"]) for r in rows)
     md.append("\n{} runs, {:.0f} s of wall time in the runs. Plot: stability_map.{{png,svg}}.\n".format(len(rows), wall))
-    doc = {"experiment": "contact", "hstar": hstar, "hstar_contact": hstar_contact, "cells": cells, "ratios": ratios,
+    wp, wp_md = work_precision(out)
+    md += wp_md
+    doc = {"work_precision": wp, "experiment": "contact", "hstar": hstar, "hstar_contact": hstar_contact, "cells": cells, "ratios": ratios,
            "max_strain": strain, "contacts": {"{} {} {}".format(*k): n for k, n in contacts.items()},
            "dts": dts, "speeds": speeds, "wall_seconds": wall}
     write(out, "\n".join(md), doc)

@@ -45,6 +45,23 @@ with open(os.path.join(out, "summary.json")) as f:
     s = json.load(f)
 images = []
 
+
+def check_work_precision(combos, order_range):
+    """Every combination swept over dt: error falls at every halving, order within the range."""
+    wp = s.get("work_precision", {})
+    check(sorted(wp) == sorted(combos), "work-precision diagram of {} ({})".format(", ".join(combos), ", ".join(sorted(wp))))
+    for c in combos:
+        pts = wp.get(c, {}).get("points", [])
+        errs = [p["rms_error"] for p in pts]
+        check(len(pts) >= 3 and all(p["ok"] for p in pts), "{}: {} swept runs, all completed".format(c, len(pts)))
+        check(all(b < a for a, b in zip(errs, errs[1:])), "{}: the error falls as dt falls ({})".format(
+            c, ", ".join("{:.3g}".format(e) for e in errs)))
+        order = wp.get(c, {}).get("order")
+        check(order is not None and order_range[0] <= order <= order_range[1],
+              "{}: error order in dt {} within [{}, {}]".format(c, order, *order_range))
+    return wp
+
+
 if which == "integrators":
     rows = s["first_step"]
     check(len(rows) == 9, "nine first steps: three variants x three time steps ({})".format(len(rows)))
@@ -70,7 +87,12 @@ if which == "integrators":
     check("cloth_map" not in s["maps"], "--quick leaves out the cloth map")
     with open(os.path.join(out, "histories.jsonl")) as f:
         check(sum(1 for l in f if l.strip()) == 9, "histories.jsonl: one residual history per first step")
-    images = ["histories", os.path.join("hinge_map", "stability_map")]
+    wp = check_work_precision(["cloth_ip_direct", "cloth_root_direct"], (0.7, 1.3))  # backward Euler: first order
+    if len(wp) == 2:
+        pairs = zip(wp["cloth_ip_direct"]["points"], wp["cloth_root_direct"]["points"])
+        check(all(abs(a["rms_error"] - b["rms_error"]) <= 0.01 * a["rms_error"] for a, b in pairs),
+              "both integrators solve the same equation: their errors agree within 1 % at every dt")
+    images = ["histories", os.path.join("hinge_map", "stability_map"), os.path.join("work_precision", "pareto")]
 
 elif which == "linear":
     d, sa = s["solvers"]["diag_pcg"], s["solvers"]["sa_ppcg"]
@@ -100,7 +122,11 @@ else:
     check(worst < 0.0101, "ADONIS keeps every edge within its 1 % stretch tolerance in the runs with contact ({:.3g} %)".format(100 * worst))
     check(strain["rods_impulse"]["20"]["0.002"] > 0.5, "impulses overstretch the whip at 2 ms ({:.3g} %)".format(
         100 * strain["rods_impulse"]["20"]["0.002"]))
-    images = ["stability_map"]
+    wp = check_work_precision(["rods_impulse", "rods_linear", "rods_adonis"], (0.4, 1.5))
+    for c, d in wp.items():
+        check(all(p["contacts"] > 0 for p in d["points"]), "{}: every swept run touches the wall ({} contacts)".format(
+            c, ", ".join(str(p["contacts"]) for p in d["points"])))
+    images = ["stability_map", os.path.join("work_precision", "pareto")]
 
 if have_matplotlib:
     for stem in images:
