@@ -191,9 +191,9 @@ int main(int argc, char** argv) {
   app::ValidateOptions validate;
   bool validate_no_plots = false;
   auto* cmd_validate = app.add_subcommand(
-      "validate", "reference problems with closed-form or exact answers (membrane stretch, cantilever elastica, incline): "
+      "validate", "reference problems with closed-form or exact answers (membrane stretch, cantilever elastica of strips and rods, incline, a helical rod at rest): "
                   "a table of reference, measured, error and pass; CSV, JSON, report.md; exit 4 when one misses");
-  cmd_validate->add_option("overrides", validate.overrides, "key=value overrides applied to every problem's scene");
+  cmd_validate->add_option("overrides", validate.overrides, "key=value overrides applied to every problem's scene (cloths.* to the cloth problems, rods.* to the rod problems)");
   cmd_validate->add_flag("--quick", validate.quick, "the reduced suite (coarse meshes), as the default tests run it");
   cmd_validate->add_option("--only", validate.only, "problems whose name starts with this (repeatable), e.g. cantilever/tan");
   cmd_validate->add_option("-o,--out", validate.out_dir, "output directory (default: out-validate)");

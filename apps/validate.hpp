@@ -12,7 +12,7 @@ namespace weft::app {
 struct ValidateOptions {
   bool quick = false;                  ///< the reduced suite (coarse meshes; the default tests run it)
   std::vector<std::string> only;       ///< run the problems whose name starts with one of these ("" = all)
-  std::vector<std::string> overrides;  ///< key=value applied to every problem's scene
+  std::vector<std::string> overrides;  ///< key=value applied to every problem's scene (cloths.* only to cloths, rods.* only to rods)
   std::string out_dir = "out-validate";
   bool plots = true;
   bool quiet = false;
