@@ -157,6 +157,15 @@ AblateRow run_one(const std::string& scene_path, const std::vector<std::string>&
 /// A row's name in tables and plots: the combination, and its sweep point if any.
 std::string label(const AblateRow& r) { return r.point.empty() ? r.combo : r.combo + " " + r.point; }
 
+/// One run's overrides: the user's, the combination's, the sweep point's, the duration.
+std::vector<std::string> run_overrides(const AblateOptions& opt, const std::string& combo, const std::vector<std::string>& point) {
+  std::vector<std::string> ov = opt.overrides;
+  append_combo_overrides(ov, combo);
+  ov.insert(ov.end(), point.begin(), point.end());
+  if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
+  return ov;
+}
+
 /// The sweep points: the product of the sweeps' values, each point one override per sweep.
 std::vector<std::vector<std::string>> sweep_points(const std::vector<std::string>& sweeps, std::vector<std::string>& problems) {
   std::vector<std::vector<std::string>> points = {{}};
@@ -240,13 +249,8 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
     if (!problems.empty()) throw ConfigError(fmt::format("{}: cannot ablate", opt.scene), problems);
     double smallest_dt = scene.spec.time.dt;
     for (const std::string& n : names)
-      for (const auto& point : points) {
-        std::vector<std::string> ov = opt.overrides;
-        append_combo_overrides(ov, n);
-        ov.insert(ov.end(), point.begin(), point.end());
-        if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
-        smallest_dt = std::min(smallest_dt, make_simulator(load_scene(opt.scene, ov))->scene().spec.time.dt);
-      }
+      for (const auto& point : points)
+        smallest_dt = std::min(smallest_dt, make_simulator(load_scene(opt.scene, run_overrides(opt, n, point)))->scene().spec.time.dt);
     reference = opt.reference.empty() ? default_reference(scene) : opt.reference;
     ref_ov = opt.overrides;
     append_combo_overrides(ref_ov, reference);
@@ -300,12 +304,8 @@ int run_ablate(const AblateOptions& opt, std::vector<AblateRow>* out_rows) {
   std::vector<AblateRow> rows;
   for (const std::string& n : names)
     for (const auto& point : points) {
-      std::vector<std::string> ov = opt.overrides;
-      append_combo_overrides(ov, n);
-      ov.insert(ov.end(), point.begin(), point.end());
-      if (opt.duration > 0) ov.push_back(fmt::format("time.duration={}", opt.duration));
       Json h;
-      AblateRow row = run_one(opt.scene, ov, &ref, nullptr, size, h, opt.quiet);
+      AblateRow row = run_one(opt.scene, run_overrides(opt, n, point), &ref, nullptr, size, h, opt.quiet);
       row.point = fmt::format("{}", fmt::join(point, " "));
       if (!h.is_null()) h["label"] = label(row);
       rows.push_back(std::move(row));
