@@ -206,6 +206,21 @@ std::vector<Problem> suite() {
                "a rod in its rest shape stores no energy and feels no force: it stays where it is", 1e-9, true,
                [](const Scene&) { return 0.0; }, largest_displacement});
   constexpr double settle = 0.1;
+  for (const double mu : {0.5, 0.6}) {
+    const bool slides = mu < 0.55;
+    p.push_back({slides ? "rod/incline/slide" : "rod/incline/stick",
+                 fmt::format("rod across a plane inclined by 30 degrees, ADONIS contact, mu = {} {} tan 30: {}", mu, slides ? "<" : ">",
+                             slides ? "downhill acceleration" : "downhill distance after 0.1 s"),
+                 "scenes/validation/rod_incline.json", {fmt::format("obstacles.0.friction={}", mu)}, true,
+                 slides ? "acceleration" : "slide distance", slides ? "m/s^2" : "m",
+                 slides ? "Coulomb friction on an incline, a = g (sin alpha - mu cos alpha)"
+                        : "Coulomb friction on an incline: no sliding when mu > tan alpha",
+                 slides ? 0.05 : 1e-3, !slides,
+                 [slides](const Scene& s) {
+                   return slides ? reference::incline_acceleration(s.spec.gravity.norm(), incline_angle(s), obstacle_friction(s)) : 0.0;
+                 },
+                 [=](const Scene& s, const Record& r) { return slides ? slide_acceleration(s, r, settle) : slide_distance(s, r, settle); }});
+  }
   p.push_back({"incline/slide", "sheet on a plane inclined by 30 degrees, mu = 0.5 < tan 30: downhill acceleration",
                "scenes/incline_sheet.json", {"obstacles.0.friction=0.5"}, true, "acceleration", "m/s^2",
                "Coulomb friction on an incline, a = g (sin alpha - mu cos alpha)", 0.05, false,
