@@ -67,6 +67,11 @@ double elastica_alpha_at_chord_angle(double chord_angle) {
   return 0.5 * (lo + hi);
 }
 
+double arc_cantilever_deflection(double phi, double R, double q, double bending, double torsion) {
+  const double b = 1.0 - std::cos(phi), t = phi - std::sin(phi);
+  return q * R * R * R * R * (b * b / (2.0 * bending) + t * t / (2.0 * torsion));
+}
+
 double stvk_uniaxial_lateral_stretch(double lambda, double nu) { return std::sqrt(1.0 - nu * (lambda * lambda - 1.0)); }
 
 double incline_acceleration(double g, double angle, double mu) {

@@ -21,6 +21,16 @@ Elastica cantilever_elastica(double alpha);
 /// c = (D / w)^(1/3) is half the overhang).
 double elastica_alpha_at_chord_angle(double chord_angle);
 
+/// Out-of-plane deflection of the free end of a circular-arc cantilever (radius R, opening
+/// angle phi, clamped at one end) under a distributed load q per unit length normal to its
+/// plane, small deflections: bending and torsion both work (curved beams loaded normal to
+/// their plane, Roark's Formulas for Stress and Strain, ch. 9; by Castigliano's theorem with
+/// a unit load at the tip; at the angle a from the free end the load beyond gives the bending
+/// moment q R^2 (1 - cos a) and the torque q R^2 (a - sin a), the unit load R sin a and
+/// R (1 - cos a)):
+///   delta = q R^4 [ (1 - cos phi)^2 / (2 EI) + (phi - sin phi)^2 / (2 GJ) ].
+double arc_cantilever_deflection(double phi, double R, double q, double bending, double torsion);
+
 /// Isotropic St. Venant-Kirchhoff sheet in uniaxial stress along x (S_yy = 0): the Green
 /// strains satisfy E_yy = -nu E_xx, so the lateral stretch is sqrt(1 - nu (lambda^2 - 1))
 /// (docs/methods/shells.md §3.1; linear elasticity would give 1 - nu (lambda - 1)).

@@ -94,6 +94,18 @@ double rod_tip_drop(const Scene& s, const Record& r) {
   const Eigen::Index tip = 3 * (s.spec.rods.at(0).vertices - 1) + 2;
   return r.x0[tip] - r.x[tip];
 }
+/// Quarter ring (a flat helix of the scene's curl radius) clamped by its root edge, loaded by
+/// its weight along its axis: the free arc starts at the middle of the clamped edge, as for
+/// the straight rod.
+double rod_ring_reference(const Scene& s) {
+  const RodSpec& r = s.spec.rods.at(0);
+  const RodMaterialSpec& m = r.material;
+  const double area = std::numbers::pi * m.radius * m.radius, r2 = m.radius * m.radius;
+  const double phi = r.length * (1.0 - 0.5 / (r.vertices - 1)) / r.curl_radius;
+  return reference::arc_cantilever_deflection(phi, r.curl_radius, m.density * area * s.spec.gravity.norm(),
+                                              m.youngs_modulus * area * r2 / 4.0, m.shear_modulus * area * r2 / 2.0);
+}
+
 /// Largest distance of a vertex from where it started.
 double largest_displacement(const Scene&, const Record& r) {
   double d = 0;
@@ -201,6 +213,14 @@ std::vector<Problem> suite() {
                  "inextensible elastica of a clamped rod under its own weight, EI = Y pi r^4 / 4 (Frisch-Fay 1962, Flexible Bars, "
                  "ch. 3; solved by shooting)",
                  0.01, false, rod_cantilever_reference, rod_tip_drop});
+  for (const int n : {21, 41, 81})
+    p.push_back({fmt::format("rod/ring-{}", n),
+                 fmt::format("quarter ring of radius 5 cm, r = 1 mm, root edge clamped, bent out of its plane by its weight: "
+                             "bending and torsion together ({} vertices)", n),
+                 "scenes/validation/rod_ring.json", {fmt::format("rods.0.vertices={}", n)}, n == 21, "tip deflection", "m",
+                 "circular-arc cantilever loaded normal to its plane, q R^4 [(1 - cos phi)^2 / 2 EI + (phi - sin phi)^2 / 2 GJ], "
+                 "EI = Y pi r^4 / 4, GJ = G pi r^4 / 2 (Castigliano; Roark's Formulas for Stress and Strain, ch. 9)",
+                 0.01, false, rod_ring_reference, rod_tip_drop});
   p.push_back({"rod/helix-at-rest", "helix of radius 1 cm and pitch 2 cm in its rest shape, root edge clamped, no gravity: "
                "largest displacement after 1 s", "scenes/validation/rod_helix.json", {}, true, "largest displacement", "m",
                "a rod in its rest shape stores no energy and feels no force: it stays where it is", 1e-9, true,

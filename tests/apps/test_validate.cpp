@@ -46,6 +46,20 @@ TEST_SUITE("apps") {
     CHECK(reference::elastica_alpha_at_chord_angle(41.5 * std::numbers::pi / 180) == doctest::Approx(8.0).epsilon(0.01));
   }
 
+  TEST_CASE("validate: a shallow arc cantilever is the straight one and torsion works in a quarter ring") {
+    // R phi = L fixed, phi -> 0: q L^4 / 8 EI, the torsion share vanishing as phi^2
+    const double L = 0.3, q = 2.0, EI = 0.5, GJ = 0.4;
+    for (double phi : {1e-2, 1e-3}) {
+      const double d = reference::arc_cantilever_deflection(phi, L / phi, q, EI, GJ);
+      CHECK(d == doctest::Approx(q * L * L * L * L / (8 * EI)).epsilon(phi));
+    }
+    const double quarter = std::numbers::pi / 2, R = 0.05;
+    const double bend = reference::arc_cantilever_deflection(quarter, R, q, EI, 1e300);
+    CHECK(bend == doctest::Approx(q * std::pow(R, 4) / (2 * EI)).epsilon(1e-14));
+    const double both = reference::arc_cantilever_deflection(quarter, R, q, EI, GJ);
+    CHECK(both - bend == doctest::Approx(q * std::pow(R, 4) * std::pow(quarter - 1, 2) / (2 * GJ)).epsilon(1e-12));
+  }
+
   TEST_CASE("validate: StVK lateral stretch in uniaxial stress") {
     CHECK(reference::stvk_uniaxial_lateral_stretch(1.0, 0.3) == 1.0);
     const double l = reference::stvk_uniaxial_lateral_stretch(1.2, 0.3);
@@ -127,6 +141,25 @@ TEST_SUITE("apps") {
       CHECK(!wrong[i].pass);
       CHECK(wrong[i].error > 10 * wrong[i].tolerance);
     }
+  }
+
+  TEST_CASE("validate: the quarter ring's deflection follows its torsional stiffness") {
+    ValidateOptions o = quick_suite("ring");
+    o.only = {"rod/ring"};
+    std::vector<ValidationRow> stiff, soft;
+    CHECK(run_validate(o, &stiff) == 0);
+    o = quick_suite("ring_soft");
+    o.only = {"rod/ring"};
+    o.overrides = {"rods.0.material.shear_modulus=0.17 GPa"};  // half the torsional stiffness
+    CHECK(run_validate(o, &soft) == 0);
+    REQUIRE(stiff.size() == 1);
+    REQUIRE(soft.size() == 1);
+    CHECK(stiff[0].pass);
+    CHECK(soft[0].pass);
+    // a third of the deflection is torsion: halving GJ adds about that much, in the run as in
+    // the closed form (a rod that ignored the twist would miss the softer case by 25 %)
+    CHECK(soft[0].measured > 1.25 * stiff[0].measured);
+    CHECK(soft[0].measured / stiff[0].measured == doctest::Approx(soft[0].reference / stiff[0].reference).epsilon(0.01));
   }
 
   TEST_CASE("validate: an unknown problem or a bad override is refused before any run") {
