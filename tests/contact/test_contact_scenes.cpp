@@ -394,7 +394,7 @@ TEST_SUITE("contact") {
 TEST_SUITE("slow") {
   TEST_CASE("contact scenes slow: the twisted sheet runs to the end without intersection or NaN") {
     OneThread one;
-    const Scene scene = load_scene(scene_file("twisted_sheet.json"), {"cloths.0.mesh.resolution=[31,13]", impulses, whole_steps});
+    const Scene scene = load_scene(scene_file("twisted_sheet.json"), {"cloths.0.mesh.resolution=[21,9]", impulses, whole_steps});
     auto sim = make_simulator(scene);
     long long newton = 0;
     int newton_max = 0;
@@ -403,7 +403,7 @@ TEST_SUITE("slow") {
       newton_max = std::max(newton_max, r.newton.iterations);
     });
     CHECK(st.steps == 960);
-    MESSAGE("twisted sheet 31x13: " << st.proximity << " proximity pairs, " << st.ccd_hits << " CCD hits, " << st.impact_zones
+    MESSAGE("twisted sheet 21x9: " << st.proximity << " proximity pairs, " << st.ccd_hits << " CCD hits, " << st.impact_zones
                                     << " impact zones over " << st.steps << " steps; Newton iterations per step "
                                     << static_cast<double>(newton) / st.steps << " on average, " << newton_max << " at most");
     CHECK(st.proximity + st.ccd_hits > 0);  // it reached self contact
@@ -411,11 +411,11 @@ TEST_SUITE("slow") {
 
   TEST_CASE("contact scenes slow: dropVertical runs to the end without intersection or NaN") {
     OneThread one;
-    const Scene scene = load_scene(scene_file("drop_vertical.json"), {"cloths.0.mesh.resolution=[31,31]", impulses, whole_steps});
+    const Scene scene = load_scene(scene_file("drop_vertical.json"), {"cloths.0.mesh.resolution=[21,21]", impulses, whole_steps});
     auto sim = make_simulator(scene);
     const RunStats st = run_checked(*sim, contact_thickness(*sim));
     CHECK(st.steps == 360);
-    MESSAGE("dropVertical 31x31: " << st.proximity << " proximity pairs, " << st.ccd_hits << " CCD hits, " << st.impact_zones
+    MESSAGE("dropVertical 21x21: " << st.proximity << " proximity pairs, " << st.ccd_hits << " CCD hits, " << st.impact_zones
                                    << " impact zones over " << st.steps << " steps");
     CHECK(st.proximity + st.ccd_hits > 0);
   }
@@ -423,9 +423,9 @@ TEST_SUITE("slow") {
   TEST_CASE("contact scenes slow: dropVertical with contact constraints and SA+PPCG runs to the end without intersection or NaN") {
     // The constraint strategy (obstacles as equality constraints in the implicit solve,
     // re-detected when the solve crosses them; repulsion springs; impulse failsafe) on the
-    // 31 x 31 sheet dropped 3 mm above the box (the history below is of the 41 x 41 sheet,
-    // which `weft bench contact` runs). It used to stop at step 45 (Newton stalled on
-    // an infeasible iterate), then at 346 (a two-cycle over a rounded box edge), 274 (a vertex
+    // 21 x 21 sheet dropped 3 mm above the box (the history below is of the 41 x 41 sheet,
+    // which `weft bench contact` runs, and of the 31 x 31 sheet this test ran before). It
+    // used to stop at step 45 (Newton stalled on an infeasible iterate), then at 346 (a two-cycle over a rounded box edge), 274 (a vertex
     // pinned onto the seam of two boxes) and 214 (a deep crossing next to a shared face);
     // docs/contact.md; then, with four touching boxes, at 195 (a vertex sliding around one box's
     // edge into its neighbour), gone since the box with a hole is one mesh obstacle.
@@ -438,7 +438,7 @@ TEST_SUITE("slow") {
     OneThread one;
     const Scene scene = load_scene(scene_file("drop_vertical.json"),
                                    {"combo=cloth_ip_constraints_sa_ppcg", "cloths.0.mesh.center=[0,0,0.503]",
-                                    "cloths.0.mesh.resolution=[31,31]", "contact.projection_tolerance=0",
+                                    "cloths.0.mesh.resolution=[21,21]", "contact.projection_tolerance=0",
                                     "time.max_subdivisions=3"});
     auto sim = make_simulator(scene);
     long long newton = 0, redetected = 0;
@@ -454,7 +454,7 @@ TEST_SUITE("slow") {
     });
     CHECK(st.steps == 360);
     CHECK(subdivided == 0);
-    MESSAGE("dropVertical 31x31, constraints + SA+PPCG: " << st.contacts / st.steps << " contacts per step, " << redetections
+    MESSAGE("dropVertical 21x21, constraints + SA+PPCG: " << st.contacts / st.steps << " contacts per step, " << redetections
                                                           << " re-detections adding " << redetected << " contacts, deepest solve "
                                                           << solve_penetration << " m; Newton " << static_cast<double>(newton) / st.steps
                                                           << " per step, " << newton_max << " at most; " << subdivided
@@ -466,11 +466,11 @@ TEST_SUITE("slow") {
 
   TEST_CASE("contact scenes slow: the drape at several of its 36 resolutions") {
     // The scene's combination (LDL^T) at 11 and 21, the same impulse contact with SA+PPCG at
-    // 21 and 31: the drape's physics at the smallest sizes that show it. All 36 resolutions, up
+    // 21: the drape's physics at the smallest sizes that show it. All 36 resolutions, up
     // to 81 x 81, are run to the end by `weft bench contact --drape` (bench/results/contact/).
     OneThread one;
     for (auto [n, combo] : {std::pair{11, "cloth_ip_impulse_direct"}, std::pair{21, "cloth_ip_impulse_direct"},
-                            std::pair{21, "cloth_ip_impulse_sa_ppcg"}, std::pair{31, "cloth_ip_impulse_sa_ppcg"}}) {
+                            std::pair{21, "cloth_ip_impulse_sa_ppcg"}}) {
       CAPTURE(n);
       CAPTURE(std::string(combo));
       const Scene scene = load_scene(scene_file("drape_sphere.json"), {"cloths.0.mesh.resolution=[" + std::to_string(n) + "," +

@@ -359,7 +359,7 @@ TEST_SUITE("slow") {
   TEST_CASE("impulse cloth: a soft sheet dropped on its edge crumples onto itself without intersection") {
     // dropVertical in small: a vertical sheet falls on a floor with friction, buckles and
     // piles up in layers (heavy self contact, impact zones in about half of the steps).
-    Json cloth = sheet(0.5, 26, Vector3d(0, 0, 0.3), Vector3d(0, 0.02, -1.0));
+    Json cloth = sheet(0.5, 21, Vector3d(0, 0, 0.3), Vector3d(0, 0.02, -1.0));
     cloth["mesh"]["plane"] = "xz";
     cloth["material"] = Json::parse(R"({"density": 0.1, "youngs_modulus": 2e6, "poisson_ratio": 0.3, "thickness": 3e-4})");
     const Scene scene = scene_of({cloth}, R"({"obstacles": [{"shape": "plane", "center": [0, 0, 0], "friction": 0.6}],
@@ -374,6 +374,7 @@ TEST_SUITE("slow") {
       for (int i = 0; i < sim->state().num_vertices(); ++i) REQUIRE(sim->state().position(i).z() >= 0.002 - 1e-12);
       hits += r.contact.contacts;
     }
+    MESSAGE("21 x 21 sheet, 300 steps: " << hits << " contacts");
     CHECK(hits > 10000);
   }
 
