@@ -425,8 +425,9 @@ TEST_SUITE("slow") {
     // re-detected when the solve crosses them; repulsion springs; impulse failsafe) on the
     // 21 x 21 sheet dropped 3 mm above the box (the history below is of the 41 x 41 sheet,
     // which `weft bench contact` runs, and of the 31 x 31 sheet this test ran before). It
-    // used to stop at step 45 (Newton stalled on an infeasible iterate), then at 346 (a two-cycle over a rounded box edge), 274 (a vertex
-    // pinned onto the seam of two boxes) and 214 (a deep crossing next to a shared face);
+    // used to stop at step 45 (Newton stalled on an infeasible iterate), then at 346 (a
+    // two-cycle over a rounded box edge), 274 (a vertex pinned onto the seam of two boxes) and
+    // 214 (a deep crossing next to a shared face);
     // docs/contact.md; then, with four touching boxes, at 195 (a vertex sliding around one box's
     // edge into its neighbour), gone since the box with a hole is one mesh obstacle.
     // Projection tolerance 0: whatever the solve leaves below the thickness surface is
