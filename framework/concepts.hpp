@@ -96,6 +96,12 @@ concept LinearSolver = Component<L> && std::constructible_from<L, const typename
 template <class L>
 concept HasSolveContext = requires(L& l, const SolveContext& ctx) { l.set_context(ctx); };
 
+/// Optional hook of a linear solver: a new time step begins (the integrator calls
+/// `l.begin_step()` before the step's first factorize). Solvers that keep a preconditioner
+/// per step (SaAmg with reuse = step) refresh it at the next factorize.
+template <class L>
+concept HasStepHook = requires(L& l) { l.begin_step(); };
+
 /// Optional hook of a contact strategy: equality constraints inside the implicit solve
 /// (Baraff & Witkin 1998; methods/integration-and-contact §10, methods/multigrid §7). The integrators hand them to the
 /// linear solver, which must then model `HasSolveContext` (a static_assert says so).

@@ -66,6 +66,7 @@ class StepSystem final : public NewtonProblem {
       if (!p.fixed[i]) free_mass_ += s.mass[i];
     }
     x0_ = s.x;
+    if constexpr (HasStepHook<L>) linear_.begin_step();
     ScopedTimer t(times_, Stage::energy);
     V0_ = energy_.energy(s) + contact_.energy(s);
   }

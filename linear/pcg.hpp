@@ -189,6 +189,10 @@ class PreconditionerSlot {
   const std::string& message() const { return message_; }
   /// A failed setup of a block-diagonal preconditioner proves the matrix not positive definite.
   bool proves_indefinite() const;
+  /// A new time step begins (forwarded to P if it keeps a hierarchy per step: SaAmg).
+  void begin_step() {
+    if constexpr (requires { p_.begin_step(); }) p_.begin_step();
+  }
   /// Number of builds since construction (tests of the setup policy).
   int builds() const { return builds_; }
   /// After a preconditioner breakdown: whether P could make itself SPD again (SaAmg widens
@@ -234,6 +238,8 @@ class ModifiedPcg {
   /// The relative tolerance of the next solves, looser than linear.tolerance (an inexact
   /// Newton's forcing term); 0 or below linear.tolerance: linear.tolerance.
   void set_tolerance(double relative) { forced_tolerance_ = relative; }
+  /// A new time step begins (`HasStepHook`): a preconditioner kept per step refreshes next.
+  void begin_step() { slot_.begin_step(); }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
   std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }
@@ -290,6 +296,8 @@ class Ppcg {
   /// The relative tolerance of the next solves, looser than linear.tolerance (an inexact
   /// Newton's forcing term); 0 or below linear.tolerance: linear.tolerance.
   void set_tolerance(double relative) { forced_tolerance_ = relative; }
+  /// A new time step begins (`HasStepHook`): a preconditioner kept per step refreshes next.
+  void begin_step() { slot_.begin_step(); }
   const P& preconditioner() const { return slot_.get(); }
   int preconditioner_builds() const { return slot_.builds(); }
   std::string resume_caveat() const { return detail::kept_preconditioner_caveat(prm_); }

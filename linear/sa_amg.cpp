@@ -373,7 +373,7 @@ int keep_for_cycle(Level<B>& L, const SaAmg::Params& prm) {
   // block of P).
   L.rchunks = sa::restriction_chunks<B>(L.P.view());
   if (prm.reuse == SaReuse::none) {
-    // Only `aggregates` refreshes values on the kept structure.
+    // Only `aggregates` and `step` refresh values on the kept structure.
     std::vector<std::uint8_t>().swap(L.strong);
     std::vector<std::uint8_t>().swap(L.filter);
     std::vector<std::uint8_t>().swap(L.special);
@@ -472,7 +472,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       st.truncated = restrict_prolongator<B>(L.P, L.kept_ptr, L.kept_col);
     } else if (truncating) {
       st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation);
-      if (prm.reuse == SaReuse::aggregates) {
+      if (prm.reuse == SaReuse::aggregates || prm.reuse == SaReuse::step) {
         L.kept_ptr = L.P.row_ptr();
         L.kept_col = L.P.col();
       }
@@ -548,8 +548,14 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
   const bool same_pattern = I.built && I.fine_rows == n && I.fine_nnz == A.num_blocks() && I.fine_pattern == pattern;
   const bool reuse = same_pattern && active_.reuse != SaReuse::none;
   stats_.reused = reuse;
-  if (reuse && active_.reuse == SaReuse::frozen) return Status::success;
+  const bool keeps_all = active_.reuse == SaReuse::frozen || (active_.reuse == SaReuse::step && !step_begun_);
+  if (reuse && keeps_all) {
+    stats_.times = {};  // nothing was set up
+    return Status::success;
+  }
   if (!reuse) active_ = prm_.resolved(n);  // kept with the structure it built
+  // Under frozen and step the hierarchy outlives the caller's values: it keeps its own copy.
+  const bool own_copy = active_.reuse == SaReuse::frozen || active_.reuse == SaReuse::step;
 
   SaSetupTimes times;
   double total = 0;
@@ -562,7 +568,7 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
       I.fine = std::make_unique<Level<3>>();
     }
     Level<3>& F = *I.fine;
-    if (active_.reuse == SaReuse::frozen) {
+    if (own_copy) {
       F.own = BlockMatrix<3, 3>(n, n, A.row_ptr(), A.col());
       F.own.values() = A.values();
       if (!filter.empty()) {  // the copy holds Ahat itself: the filters need not outlive setup
@@ -598,6 +604,8 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
     return status;
   }
   I.built = true;
+  step_begun_ = false;
+  ++refreshes_;
   const int L = levels();
   stats_.coarse_direct = (L == 1 ? I.fine->direct : I.coarse[L - 2].direct) != 0;
   return Status::success;

@@ -74,8 +74,10 @@ enum class SaReuse {
                ///< the coarse factorisation
   frozen,      ///< keep the whole hierarchy (a private copy of the fine matrix included) until
                ///< `analyze_pattern`: B stays a fixed SPD map, only its quality drops
+  step,        ///< `aggregates` at the first setup of each time step (`begin_step`), `frozen`
+               ///< for the step's other setups: one refresh per step, not per Newton iteration
 };
-inline constexpr std::array<std::string_view, 3> sa_reuse_names = {"none", "aggregates", "frozen"};
+inline constexpr std::array<std::string_view, 4> sa_reuse_names = {"none", "aggregates", "frozen", "step"};
 
 /// Named settings of `SaAmg::Params` (the key `preset`, read before the others: keys given
 /// beside it change single settings of the preset). docs/linear-solvers.md gives the
@@ -370,7 +372,11 @@ class SaAmg {
     double prolongator_truncation = 0;
     /// What a setup with an unchanged pattern keeps (see `SaReuse`). Keeping the aggregates
     /// and patterns between Newton iterations and steps halved the SA setup of the hanging
-    /// cloth at 40k vertices (2.82 -> 2.30 s per step) at the same iterations.
+    /// cloth at 40k vertices (2.82 -> 2.30 s per step) at the same iterations. Refreshing the
+    /// values once per step (`step`) cut the setup from 36 % to 15 % of the linear time for
+    /// 30 % more PCG iterations, 3-5 % less per step there, but broke down on the 11 x 11
+    /// drape with impulses and holds a copy of the fine matrix (bench/results/linear-choice,
+    /// "Refreshing once per step"): not the default.
     SaReuse reuse = SaReuse::aggregates;
     /// Storage of the prolongators' values (see `ValueStorage`). fixed16 left SA+PPCG's
     /// iterations unchanged on every example at 10k-361k (and 1M pinned) at a quarter of P's
@@ -496,7 +502,9 @@ class SaAmg {
               {Unit::none, Range::closed(1, 30), "levels, from the fine one, whose prolongator gets prolongator_degree steps"});
       v.field("prolongator_truncation", prolongator_truncation,
               {Unit::none, Range::closed_open(0, 1), "drop the blocks of each prolongator row below this fraction of the row's largest (Frobenius norm); preserve_modes then repairs the rigid modes (0: keep all)"});
-      v.choice("reuse", reuse, sa_reuse_names, "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything");
+      v.choice("reuse", reuse, sa_reuse_names,
+               "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything; step: refresh "
+               "once per time step, keep everything between");
       v.choice("prolongator_storage", prolongator_storage, value_storage_names,
                "storage of the prolongators' values: double or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");
       v.field("single_coarse_operators", single_coarse_operators,
@@ -533,6 +541,10 @@ class SaAmg {
   SaAmg& operator=(SaAmg&&) noexcept;
   /// Forget every cached structure (the next `setup` rebuilds everything).
   Status analyze_pattern(const BlockCsr& A);
+  /// A new time step begins: under reuse = step, the next setup refreshes the hierarchy.
+  void begin_step() { step_begun_ = true; }
+  /// Setups that built or refreshed the hierarchy (the others kept it) since construction.
+  int refreshes() const { return refreshes_; }
   /// Build (or refresh, see `SaReuse`) the hierarchy from the prefiltered matrix A.
   /// ctx.positions is required (rotation modes); ctx.constraints, if given, filters K.
   /// Except under `frozen`, A must stay alive and unchanged while `apply` is used.
@@ -575,6 +587,8 @@ class SaAmg {
   Params active_;  // prm_ resolved for the last setup's size (`Params::resolved`)
   SaStats stats_;
   int widened_ = 0;
+  bool step_begun_ = true;  // reuse = step: no setup since the last begin_step
+  int refreshes_ = 0;
   std::unique_ptr<Impl> impl_;
 };
 

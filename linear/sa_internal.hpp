@@ -36,8 +36,8 @@ int find_block(const BsrView<R, C>& A, int i, int j) {
 template <int B>
 struct Level {
   static constexpr int block = B;
-  BsrView<B, B> external;       // the caller's matrix (fine level, reuse != frozen)
-  // Galerkin result (coarse: symmetric, upper triangle stored) or private copy (fine, frozen).
+  BsrView<B, B> external;       // the caller's matrix (fine level, reuse none or aggregates)
+  // Galerkin result (coarse: symmetric, upper triangle stored) or private copy (fine, frozen or step).
   std::conditional_t<(B == 6), SymBlockMatrix<6>, BlockMatrix<B, B>> own;
   bool uses_external = false;
   BsrView<B, B> A() const { return uses_external ? external : own.view(); }
