@@ -28,6 +28,11 @@ namespace weft::linear {
 
 namespace {
 
+/// Reuse modes that refresh the values on a kept structure (and so keep a truncated P's pattern).
+constexpr bool refreshes_values(SaReuse r) { return r == SaReuse::aggregates || r == SaReuse::step; }
+/// Reuse modes whose hierarchy outlives the caller's values: the fine level holds its own copy.
+constexpr bool owns_fine_copy(SaReuse r) { return r == SaReuse::frozen || r == SaReuse::step; }
+
 /// ||D^-1 A||_inf with D the block diagonal of A as the operator reads it: an upper bound of
 /// the spectral radius of D^-1 A (every induced norm bounds it), so of lambda_max(D^-1 A).
 template <int B>
@@ -472,7 +477,7 @@ Status build_level(BuildContext& ctx, Level<B>& L, int index, NullSpace K, bool 
       st.truncated = restrict_prolongator<B>(L.P, L.kept_ptr, L.kept_col);
     } else if (truncating) {
       st.truncated = sa::truncate_prolongator<B>(L.P, prm.prolongator_truncation);
-      if (prm.reuse == SaReuse::aggregates || prm.reuse == SaReuse::step) {
+      if (refreshes_values(prm.reuse)) {
         L.kept_ptr = L.P.row_ptr();
         L.kept_col = L.P.col();
       }
@@ -554,8 +559,6 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
     return Status::success;
   }
   if (!reuse) active_ = prm_.resolved(n);  // kept with the structure it built
-  // Under frozen and step the hierarchy outlives the caller's values: it keeps its own copy.
-  const bool own_copy = active_.reuse == SaReuse::frozen || active_.reuse == SaReuse::step;
 
   SaSetupTimes times;
   double total = 0;
@@ -568,7 +571,7 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
       I.fine = std::make_unique<Level<3>>();
     }
     Level<3>& F = *I.fine;
-    if (own_copy) {
+    if (owns_fine_copy(active_.reuse)) {
       F.own = BlockMatrix<3, 3>(n, n, A.row_ptr(), A.col());
       F.own.values() = A.values();
       if (!filter.empty()) {  // the copy holds Ahat itself: the filters need not outlive setup
