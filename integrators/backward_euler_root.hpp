@@ -33,7 +33,7 @@ class BackwardEulerRoot {
                                     "incremental_potential (its line search is bounded by the CCD)");
     return newton_step(energy, contact, linear, p, prm_.initial_guess, prm_.length_tolerance, d_,
                        [&](NewtonProblem& system, Eigen::VectorXd& d, double tol, StepReport& rep) {
-                         return find_root(system, d, tol, prm_, rep.newton, rep.linear, rep.times);
+                         return find_root(system, d, tol, prm_.at_step(p.dt), rep.newton, rep.linear, rep.times);
                        });
   }
 

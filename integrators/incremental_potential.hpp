@@ -30,7 +30,7 @@ class IncrementalPotential {
   StepReport step(const E& energy, C& contact, L& linear, StepProblem& p) {
     return newton_step(energy, contact, linear, p, prm_.initial_guess, prm_.length_tolerance, d_,
                        [&](NewtonProblem& system, Eigen::VectorXd& d, double tol, StepReport& rep) {
-                         return minimize(system, d, tol, prm_, shift_hint_, rep.newton, rep.linear, rep.times);
+                         return minimize(system, d, tol, prm_.at_step(p.dt), shift_hint_, rep.newton, rep.linear, rep.times);
                        });
   }
 

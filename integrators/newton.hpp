@@ -7,6 +7,7 @@
 /// §5.3).
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
 #include <string>
 #include <string_view>
@@ -112,6 +113,10 @@ struct NewtonParams {
   double relative_tolerance = 1e-6;   ///< on ||f||_{M^-1} relative to its value at d0
   double length_tolerance = 1e-7;     ///< [m] absolute tolerance, times sqrt(free mass)
   double step_tolerance = 0;          ///< [m] also stop when the full Newton step (before the line search) moves no vertex farther (0: off)
+  /// [m/s] also stop when the full Newton step moves no vertex farther than this times the
+  /// step's dt: the step test as a velocity, as incremental potential contact states it (Li et
+  /// al. 2020, its Newton termination), so it keeps its meaning under step subdivision (0: off).
+  double velocity_tolerance = 0;
   double decrease_tolerance = 0;      ///< also stop when an iteration decreases the merit by less than
                                       ///< this fraction of the decrease so far (0: off)
   HessianChoice hessian = HessianChoice::adaptive;
@@ -138,6 +143,8 @@ struct NewtonParams {
             {Unit::length, Range::ge(0), "absolute tolerance = length_tolerance * sqrt(free mass)"});
     v.field("step_tolerance", step_tolerance,
             {Unit::length, Range::ge(0), "also stop when the full Newton step (before the line search) moves no vertex farther than this (0: off)"});
+    v.field("velocity_tolerance", velocity_tolerance,
+            {Unit::velocity, Range::ge(0), "also stop when the full Newton step moves no vertex farther than this times dt (the larger of this and step_tolerance applies; 0: off)"});
     v.field("decrease_tolerance", decrease_tolerance,
             {Unit::none, Range::closed(0, 1), "also stop when an iteration decreases the merit by less than this fraction of the decrease so far (0: off)"});
     v.choice("hessian", hessian, hessian_choice_names,
@@ -151,6 +158,13 @@ struct NewtonParams {
             {Unit::none, Range::closed_open(0, 1), "inexact Newton with a line search (minimisation; not the trust region or root finding): iterative linear solves stop at min(forcing, sqrt(||f_k||/||f_0||)) relative residual (0: at linear.tolerance)"});
     v.field("min_shift", min_shift, {Unit::none, Range::gt(0), "adaptive: smallest shift tau of K + tau M~ tried when K is indefinite"});
     v.field("max_shift", max_shift, {Unit::none, Range::gt(0), "adaptive: largest shift before falling back to per-element projection"});
+  }
+  /// The parameters of a step of length dt: the step test at the larger of step_tolerance
+  /// and velocity_tolerance * dt.
+  NewtonParams at_step(double dt) const {
+    NewtonParams q = *this;
+    q.step_tolerance = std::max(step_tolerance, velocity_tolerance * dt);
+    return q;
   }
   static Checker validate_newton(const NewtonParams& p) {
     Checker c("integrator");

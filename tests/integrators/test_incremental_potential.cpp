@@ -1,4 +1,7 @@
 #include <doctest/doctest.h>
+#include <fmt/format.h>
+
+#include <cmath>
 
 #include "framework/scene.hpp"
 #include "policies/presets.hpp"
@@ -281,6 +284,36 @@ TEST_SUITE("integrators") {
         }
       }
       CHECK(iterations > 5);
+    }
+  }
+
+  TEST_CASE("newton: velocity_tolerance is the step test at velocity_tolerance times the step's dt") {
+    // At each of two step lengths, a tolerance between the second and third full Newton
+    // steps of a tightly converged step stops it at the third; the same velocity at the
+    // other step length would give another length, so dt enters as it should.
+    for (const double dt : {0.02, 0.01}) {
+      CAPTURE(dt);
+      Scene scene = sheet(fmt::format(R"({{"gravity": [0, 0, -9.81], "time": {{"dt": {}}}}})", dt), R"([{"vertices": [0, 5]}])");
+      ClothIpDirect::Params prm{};
+      prm.integrator.relative_tolerance = 1e-10;
+      prm.integrator.length_tolerance = 0;
+      StepReport tight = ClothIpDirect(scene, prm).step();
+      REQUIRE(tight.ok());
+      const auto& h = tight.newton.history;
+      REQUIRE(h.size() >= 4);  // the guard: the step takes more iterations than the test stops it at
+      REQUIRE(h[1].step_norm > h[2].step_norm);
+      const double length = std::sqrt(h[1].step_norm * h[2].step_norm);
+      prm.integrator.velocity_tolerance = length / dt;
+      StepReport by_velocity = ClothIpDirect(scene, prm).step();
+      REQUIRE(by_velocity.ok());
+      CHECK(by_velocity.newton.stop_reason == "step_size");
+      CHECK(by_velocity.newton.iterations == 3);
+      prm.integrator.velocity_tolerance = 0;
+      prm.integrator.step_tolerance = length;  // the same test as a length
+      CHECK(ClothIpDirect(scene, prm).step().newton.iterations == 3);
+      prm.integrator.step_tolerance = 0;
+      prm.integrator.velocity_tolerance = length / dt / 1e3;  // far below: the tight run's count
+      CHECK(ClothIpDirect(scene, prm).step().newton.iterations > 3);
     }
   }
 
