@@ -257,6 +257,7 @@ CaseResult run_case(const ExampleConfig& cfg, const std::vector<SolverEntry>& en
         if (status != Status::success) msg = "analyze_pattern failed";
       }
       sol.set_context(ctx);
+      sol.begin_step();
       if (status == Status::success) {
         status = sol.factorize(A);
         if (status != Status::success) msg = "factorize failed";

@@ -62,6 +62,9 @@ class AnySolver {
   virtual void set_context(const SolveContext& ctx) = 0;
   virtual Status analyze_pattern(const BlockCsr& A) = 0;
   virtual Status factorize(const BlockCsr& A) = 0;
+  /// A new time step begins (each benchmark step is one system): a preconditioner kept per
+  /// time step (`reuse = step`) refreshes at the next factorize.
+  virtual void begin_step() = 0;
   /// x holds the initial guess on entry.
   virtual LinearReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
   /// A known solution for the solver's own energy-error report; false if it has none.

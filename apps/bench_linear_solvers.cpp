@@ -33,6 +33,9 @@ class Adapter final : public AnySolver {
     else pre_.set_context(ctx);
   }
   Status analyze_pattern(const BlockCsr& A) override { return solver_.analyze_pattern(A); }
+  void begin_step() override {
+    if constexpr (HasStepHook<L>) solver_.begin_step();
+  }
   Status factorize(const BlockCsr& A) override {
     if constexpr (HasSolveContext<L>) return solver_.factorize(A);
     else return solver_.factorize(pre_.matrix(A));

@@ -195,9 +195,18 @@ class PreconditionerSlot {
   }
   /// Number of builds since construction (tests of the setup policy).
   int builds() const { return builds_; }
-  /// After a preconditioner breakdown: whether P could make itself SPD again (SaAmg widens
-  /// its smoothers' intervals to a guaranteed bound); the solve is then repeated once.
-  bool recover_from_breakdown() {
+  /// After a preconditioner breakdown: whether P could make itself SPD again; the solve is
+  /// then repeated once. A hierarchy kept from another matrix (SaAmg under reuse = frozen or
+  /// step: that matrix may have been indefinite, the exact Hessian of an earlier Newton
+  /// iteration) is set up again from M, the matrix of the failed solve; otherwise SaAmg widens
+  /// its smoothers' intervals to a guaranteed bound.
+  bool recover_from_breakdown(const BlockCsr& M, const SolveContext& ctx, const VertexFilterView& F = {}) {
+    if constexpr (requires { { p_.kept() } -> std::same_as<bool>; p_.begin_step(); }) {
+      if (p_.kept() && policy_ == PreconditionerSetup::every_factorize) {
+        p_.begin_step();
+        return setup(M, ctx, F) == Status::success;
+      }
+    }
     if constexpr (requires { { p_.widen_smoothers() } -> std::same_as<bool>; }) return p_.widen_smoothers();
     else return false;
   }

@@ -172,7 +172,7 @@ LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x)
     start();
     work_.resize(b.size());
     detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {tolerance(), prm_.max_iterations}, work_, rep);
-    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown()) {
+    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown(*A_, SolveContext{nullptr, ctx_.positions})) {
       const int spent = rep.iterations;
       start();
       detail::pcg(*A_, b, x, slot_.view(), c ? &filters_ : nullptr, {tolerance(), prm_.max_iterations}, work_, rep);
@@ -180,6 +180,9 @@ LinearReport ModifiedPcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x)
     }
   }
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
+  // A hierarchy kept from an indefinite matrix must not serve the retry (e.g. the shifted
+  // Newton matrix of integrator.hessian = adaptive): the next factorize refreshes it.
+  if (rep.indefinite || rep.status != Status::success) slot_.begin_step();
   rep.memory_bytes = filters_.bytes();
   detail::fill_common(slot_, work_, rep);
   return rep;
@@ -259,7 +262,7 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     };
     start();
     detail::pcg(*Ahat_, chat, x, slot_.view(), nullptr, {tolerance(), prm_.max_iterations}, work_, rep, filter_);
-    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown()) {
+    if (work_.preconditioner_breakdown && slot_.recover_from_breakdown(*Ahat_, pre_.context(), filter_)) {
       const int spent = rep.iterations;
       start();
       const Eigen::VectorXd& chat_again = pre_.active() ? pre_.rhs(b, work_.r) : b;  // the solve overwrote it
@@ -270,6 +273,7 @@ LinearReport Ppcg<P>::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   }
   rep.prefilter_seconds = pre_.take_seconds();
   detail::diagnose(*A_, c, b, x, x_star_, work_.q, rep);
+  if (rep.indefinite || rep.status != Status::success) slot_.begin_step();  // as in ModifiedPcg::solve
   rep.memory_bytes = c ? pre_.bytes() : 0;
   detail::fill_common(slot_, work_, rep);
   return rep;

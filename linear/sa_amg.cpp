@@ -31,7 +31,8 @@ namespace {
 /// Reuse modes that refresh the values on a kept structure (and so keep a truncated P's pattern).
 constexpr bool refreshes_values(SaReuse r) { return r == SaReuse::aggregates || r == SaReuse::step; }
 /// Reuse modes whose hierarchy outlives the caller's values: the fine level holds its own copy.
-constexpr bool owns_fine_copy(SaReuse r) { return r == SaReuse::frozen || r == SaReuse::step; }
+/// (`step` reads the caller's current matrix on the fine level: see SaReuse::step.)
+constexpr bool owns_fine_copy(SaReuse r) { return r == SaReuse::frozen; }
 
 /// ||D^-1 A||_inf with D the block diagonal of A as the operator reads it: an upper bound of
 /// the spectral radius of D^-1 A (every induced norm bounds it), so of lambda_max(D^-1 A).
@@ -556,8 +557,15 @@ Status SaAmg::setup(const BlockCsr& A, const SolveContext& ctx, const VertexFilt
   const bool keeps_all = active_.reuse == SaReuse::frozen || (active_.reuse == SaReuse::step && !step_begun_);
   if (reuse && keeps_all) {
     stats_.times = {};  // nothing was set up
+    if (!owns_fine_copy(active_.reuse)) {
+      // `step`: the fine level smooths with the current matrix, the coarse levels stay.
+      I.fine->external = bsr_view(A);
+      I.fine->external.filter = filter;
+    }
+    kept_ = true;
     return Status::success;
   }
+  kept_ = false;
   if (!reuse) active_ = prm_.resolved(n);  // kept with the structure it built
 
   SaSetupTimes times;

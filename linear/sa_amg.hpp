@@ -74,8 +74,10 @@ enum class SaReuse {
                ///< the coarse factorisation
   frozen,      ///< keep the whole hierarchy (a private copy of the fine matrix included) until
                ///< `analyze_pattern`: B stays a fixed SPD map, only its quality drops
-  step,        ///< `aggregates` at the first setup of each time step (`begin_step`), `frozen`
-               ///< for the step's other setups: one refresh per step, not per Newton iteration
+  step,        ///< `aggregates` at the first setup of each time step (`begin_step`); the step's
+               ///< other setups keep the coarse levels and the fine level's Lanczos bound and
+               ///< smooth with the current fine matrix: one refresh per step, not per Newton
+               ///< iteration, and no copy of the fine matrix
 };
 inline constexpr std::array<std::string_view, 4> sa_reuse_names = {"none", "aggregates", "frozen", "step"};
 
@@ -83,7 +85,7 @@ inline constexpr std::array<std::string_view, 4> sa_reuse_names = {"none", "aggr
 /// beside it change single settings of the preset). docs/linear-solvers.md gives the
 /// measurements behind each.
 enum class SaPreset {
-  automatic,  ///< `thesis` with reuse = aggregates below `large_from` fine rows, `large` from there
+  automatic,  ///< `thesis` with reuse = step below `large_from` fine rows, `large` from there
   thesis,     ///< the thesis' V(1,1) hierarchy rebuilt at every setup: reproduces Table 11.1
   large,      ///< iterations bounded from 10k to 1M vertices and on stacked sheets, at a dearer setup
 };
@@ -373,11 +375,11 @@ class SaAmg {
     /// What a setup with an unchanged pattern keeps (see `SaReuse`). Keeping the aggregates
     /// and patterns between Newton iterations and steps halved the SA setup of the hanging
     /// cloth at 40k vertices (2.82 -> 2.30 s per step) at the same iterations. Refreshing the
-    /// values once per step (`step`) cut the setup from 36 % to 15 % of the linear time for
-    /// 30 % more PCG iterations, 3-5 % less per step there, but broke down on the 11 x 11
-    /// drape with impulses and holds a copy of the fine matrix (bench/results/linear-choice,
-    /// "Refreshing once per step"): not the default.
-    SaReuse reuse = SaReuse::aggregates;
+    /// values once per time step (`step`, the default) cuts the setup further, from 36 % to
+    /// 13-14 % of the linear time, for 19 % more PCG iterations: 0.89-0.92x the time per
+    /// step of `aggregates` there, 0.98x on the eight-sheet stack (bench/results/linear-choice,
+    /// "Refreshing once per step").
+    SaReuse reuse = SaReuse::step;
     /// Storage of the prolongators' values (see `ValueStorage`). fixed16 left SA+PPCG's
     /// iterations unchanged on every example at 10k-361k (and 1M pinned) at a quarter of P's
     /// value bytes (bench/results/table-11-1/M-memory.md, M3-fixed16.md).
@@ -463,7 +465,7 @@ class SaAmg {
     template <class V>
     void visit(V& v) {
       v.choice("preset", preset, sa_preset_names,
-               "named settings the others change: auto (the thesis' hierarchy kept between setups below large_from vertices, large from there), thesis (rebuilt at every setup: Table 11.1), large (iterations bounded to 1M vertices and on stacked sheets)");
+               "named settings the others change: auto (the thesis' hierarchy, refreshed once per time step, below large_from vertices, large from there), thesis (rebuilt at every setup: Table 11.1), large (iterations bounded to 1M vertices and on stacked sheets)");
       if constexpr (requires { v.has("preset"); })
         if (v.has("preset")) {  // reading: the preset first, then the keys given beside it
           const SaPreset chosen = preset;
@@ -503,8 +505,8 @@ class SaAmg {
       v.field("prolongator_truncation", prolongator_truncation,
               {Unit::none, Range::closed_open(0, 1), "drop the blocks of each prolongator row below this fraction of the row's largest (Frobenius norm); preserve_modes then repairs the rigid modes (0: keep all)"});
       v.choice("reuse", reuse, sa_reuse_names,
-               "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything; step: refresh "
-               "once per time step, keep everything between");
+               "none: rebuild each setup; aggregates: keep the structure; frozen: keep everything; step: "
+               "aggregates once per time step, the coarse levels kept between (the fine level reads the current matrix)");
       v.choice("prolongator_storage", prolongator_storage, value_storage_names,
                "storage of the prolongators' values: double or fixed16 (int16 with one scale per coarse dof); rounded before the Galerkin product, products in double");
       v.field("single_coarse_operators", single_coarse_operators,
@@ -545,6 +547,9 @@ class SaAmg {
   void begin_step() { step_begun_ = true; }
   /// Setups that built or refreshed the hierarchy (the others kept it) since construction.
   int refreshes() const { return refreshes_; }
+  /// The last setup kept a hierarchy set up from another matrix (`frozen`, or `step` after
+  /// the step's first setup): after a PCG breakdown, refreshing it is the remedy.
+  bool kept() const { return kept_; }
   /// Build (or refresh, see `SaReuse`) the hierarchy from the prefiltered matrix A.
   /// ctx.positions is required (rotation modes); ctx.constraints, if given, filters K.
   /// Except under `frozen`, A must stay alive and unchanged while `apply` is used.
@@ -588,6 +593,7 @@ class SaAmg {
   SaStats stats_;
   int widened_ = 0;
   bool step_begun_ = true;  // reuse = step: no setup since the last begin_step
+  bool kept_ = false;       // the last setup kept the hierarchy (see kept())
   int refreshes_ = 0;
   std::unique_ptr<Impl> impl_;
 };

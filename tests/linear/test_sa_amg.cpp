@@ -1843,22 +1843,32 @@ TEST_CASE("sa: reuse = step keeps the map within a step and refreshes it at the 
   sa.begin_step();
   REQUIRE(sa.setup(p.Ahat, ctx) == Status::success);
   sa.apply(r, z0);
-  // A later Newton iteration of the same step: new values, the same map (the hierarchy holds
-  // its own copy of the fine matrix, so the caller's may change or go).
+  CHECK_FALSE(sa.kept());
+  const Eigen::MatrixXd C0 = sa.level_matrix(1);
+  REQUIRE(C0.norm() > 0);
+  // A later Newton iteration of the same step: new values; the coarse levels stay, the fine
+  // level smooths with the new matrix (no copy of the old one is kept).
   BlockCsr A2 = p.Ahat;
   A2.scale(2.0);
   REQUIRE(sa.setup(A2, ctx) == Status::success);
   CHECK(sa.stats().reused);
+  CHECK(sa.kept());
   CHECK(sa.refreshes() == 1);
+  CHECK((sa.level_matrix(1) - C0).norm() == 0);
   sa.apply(r, z1);
-  CHECK((z1 - z0).norm() <= 1e-12 * z0.norm());
+  // Neither B(A) (a fine copy) nor B(2A) = B(A) / 2 (a refresh): the smoothed part halves, the
+  // coarse correction does not.
+  CHECK((z1 - z0).norm() >= 1e-3 * z0.norm());
+  CHECK((2 * z1 - z0).norm() >= 1e-3 * z0.norm());
   const PcgResult kept = pcg(A2, p.chat, sa);
   CHECK(kept.converged);
   // The next step refreshes the values on the kept structure: B(2A) = B(A) / 2.
   sa.begin_step();
   REQUIRE(sa.setup(A2, ctx) == Status::success);
   CHECK(sa.stats().reused);
+  CHECK_FALSE(sa.kept());
   CHECK(sa.refreshes() == 2);
+  CHECK((sa.level_matrix(1) - 2 * C0).norm() <= 1e-6 * C0.norm());
   sa.apply(r, z2);
   CHECK((2 * z2 - z0).norm() <= 1e-10 * z0.norm());
   CHECK((z2 - z0).norm() >= 0.4 * z0.norm());
@@ -1956,7 +1966,7 @@ TEST_CASE("sa: a preset is read before the keys beside it and names a bad value"
   // No preset key: the member defaults, which are auto's.
   const SaAmg::Params none = read(R"({"theta": 0.3})");
   CHECK(none.preset == SaPreset::automatic);
-  CHECK(none.reuse == SaReuse::aggregates);
+  CHECK(none.reuse == SaReuse::step);
   CHECK(none.theta == 0.3);
   try {
     read(R"({"preset": "fast"})");
